@@ -1,0 +1,196 @@
+"""LightningDataModule: random training windows, fixed seeded evaluation windows, Gaussian sensor noise."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator, Sequence
+
+import lightning as L
+import numpy as np
+import torch
+from torch.utils.data import DataLoader, IterableDataset
+
+from hybrid_sysid.data.dataset import DatasetSpec, QCMDataset, get_dataset
+from hybrid_sysid.physics import relative_states
+
+SPLITS = ("train", "val", "test")
+_SPLIT_CODE = {s: i for i, s in enumerate(SPLITS)}
+
+
+@dataclass(frozen=True)
+class Split:
+    """Which roads go where: test roads never appear in train or val."""
+
+    train: np.ndarray  # recording indices
+    val: np.ndarray
+    test: np.ndarray
+
+
+def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fraction: float) -> Split:
+    """The first roads train (the last of them validate), the rest test, as in the paper (80 / 20 roads)."""
+    if not 0.0 < train_fraction < 1.0:
+        raise ValueError(f"data.train_fraction = {train_fraction} is not allowed: must lie in (0, 1)")
+    if not 0.0 <= val_fraction < 1.0:
+        raise ValueError(f"data.val_fraction = {val_fraction} is not allowed: must lie in [0, 1)")
+    n_trainval = int(round(train_fraction * n_roads))
+    n_val = max(1, int(round(val_fraction * n_trainval))) if val_fraction > 0 else 0
+    n_train = n_trainval - n_val
+    if n_train < 1 or n_trainval >= n_roads:
+        raise ValueError(
+            f"data.n_roads = {n_roads} is too few for data.train_fraction = {train_fraction} and "
+            f"data.val_fraction = {val_fraction}: need at least one training, one test"
+            + (" and one validation road" if val_fraction > 0 else " road"))
+
+    def recordings(r0, r1):
+        return np.arange(r0 * n_masses, r1 * n_masses)
+
+    val = recordings(n_train, n_trainval) if n_val else recordings(0, n_train)  # no val roads: val on train
+    return Split(train=recordings(0, n_train), val=val, test=recordings(n_trainval, n_roads))
+
+
+def _gather(arr: torch.Tensor, rows: torch.Tensor, starts: torch.Tensor, window: int) -> torch.Tensor:
+    """arr[rows[i], starts[i]:starts[i] + window] for every i, in one indexing call."""
+    cols = starts[:, None] + torch.arange(window)
+    return arr[rows[:, None], cols]
+
+
+def _noise_states(noise: np.ndarray, dt: float, measurement: str) -> tuple[np.ndarray, np.ndarray]:
+    """Relative velocity and displacement that the noise adds when re-integrated from the window's start."""
+    return relative_states(noise[:, 0], noise[:, 1], dt, measurement)
+
+
+class QCMData:
+    """Dataset arrays as torch tensors plus the window / noise logic shared by training and evaluation."""
+
+    def __init__(self, ds: QCMDataset, window: int):
+        self.dt = ds.spec.dt
+        self.measurement = ds.spec.measurement
+        self.window = window
+        self.seat = torch.from_numpy(ds.seat_acc)
+        self.body = torch.from_numpy(ds.body_acc)
+        self.rel_vel = torch.from_numpy(ds.rel_vel)
+        self.rel_disp = torch.from_numpy(ds.rel_disp)
+        self.params = torch.from_numpy(ds.params.astype(np.float32))
+        self.n_steps = ds.seat_acc.shape[1]
+
+    def batch(self, rows, starts, noise: np.ndarray | None = None) -> dict[str, torch.Tensor]:
+        rows, starts = torch.as_tensor(rows), torch.as_tensor(starts)
+        w = self.window
+        signals = torch.stack([_gather(self.seat, rows, starts, w), _gather(self.body, rows, starts, w)], dim=1)
+        rel_vel, rel_disp = _gather(self.rel_vel, rows, starts, w), _gather(self.rel_disp, rows, starts, w)
+        if noise is not None:
+            nv, nd = _noise_states(noise, self.dt, self.measurement)
+            signals = signals + torch.from_numpy(noise.astype(np.float32))
+            rel_vel = rel_vel + torch.from_numpy(nv.astype(np.float32))
+            rel_disp = rel_disp + torch.from_numpy(nd.astype(np.float32))
+        return {"signals": signals, "params": self.params[rows], "rel_vel": rel_vel, "rel_disp": rel_disp,
+                "index": rows}
+
+
+class RandomWindows(IterableDataset):
+    """One epoch = every training recording once, in random order, each at a fresh random window start.
+
+    Whole batches are cut with vectorised indexing; epoch e draws from a generator seeded by (seed, e),
+    so a run is reproducible whatever the number of epochs.
+    """
+
+    def __init__(self, data: QCMData, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0):
+        self.data, self.rows, self.batch_size = data, rows, batch_size
+        self.seed, self.noise_std, self.epoch = seed, noise_std, 0
+
+    def __len__(self) -> int:
+        return -(-len(self.rows) // self.batch_size)
+
+    def __iter__(self) -> Iterator[dict[str, torch.Tensor]]:
+        rng = np.random.default_rng([self.seed, 1000 + self.epoch])
+        self.epoch += 1
+        order = rng.permutation(self.rows)
+        starts = rng.integers(0, self.data.n_steps - self.data.window + 1, size=len(order))
+        for i in range(0, len(order), self.batch_size):
+            rows, st = order[i:i + self.batch_size], starts[i:i + self.batch_size]
+            noise = None
+            if self.noise_std > 0:
+                noise = self.noise_std * rng.standard_normal((len(rows), 2, self.data.window))
+            yield self.data.batch(rows, st, noise)
+
+
+class QCMDataModule(L.LightningDataModule):
+    """Simulated (or cached) quarter-car recordings cut into windows.
+
+    Training: random windows drawn afresh every epoch, optional noise ``train_std``.
+    Evaluation: one fixed, seeded window per recording; Gaussian noise of each std in ``eval_std`` added to
+    both channels, from one seeded standard-normal draw per split scaled to each level (so levels differ
+    only in size, which keeps robustness curves smooth).
+    """
+
+    def __init__(
+        self,
+        spec: DatasetSpec,
+        cache_dir: str | None = None,
+        window: int = 500,
+        batch_size: int = 64,
+        eval_batch_size: int = 1000,
+        train_fraction: float = 0.8,
+        val_fraction: float = 0.125,
+        eval_std: Sequence[float] = (0.0, 0.01),
+        train_std: float = 0.0,
+        seed: int = 0,
+    ):
+        super().__init__()
+        spec.validate()
+        if window < 1 or window > spec.n_steps:
+            raise ValueError(f"data.window = {window} is not allowed: must lie in [1, data.n_steps = {spec.n_steps}]")
+        if batch_size < 1:
+            raise ValueError(f"data.batch_size = {batch_size} is not allowed: must be >= 1")
+        for s in list(eval_std) + [train_std]:
+            if not s >= 0:
+                raise ValueError(f"noise std {s} is not allowed: noise.eval_std and noise.train_std must be >= 0")
+        self.split = split_by_road(spec.n_roads, spec.n_masses, train_fraction, val_fraction)
+        self.spec, self.cache_dir, self.window = spec, cache_dir, window
+        self.batch_size, self.eval_batch_size = batch_size, eval_batch_size
+        self.eval_std, self.train_std, self.seed = [float(s) for s in eval_std], float(train_std), seed
+        self.dataset: QCMDataset | None = None
+        self.data: QCMData | None = None
+        self._eval_cache: dict = {}
+
+    def prepare_data(self) -> None:
+        get_dataset(self.spec, self.cache_dir)  # simulate and cache once
+
+    def setup(self, stage: str | None = None) -> None:
+        if self.data is None:
+            self.dataset = get_dataset(self.spec, self.cache_dir)
+            self.data = QCMData(self.dataset, self.window)
+            self.train_windows = RandomWindows(self.data, self.split.train, self.batch_size, self.seed, self.train_std)
+
+    def rows(self, split: str) -> np.ndarray:
+        return getattr(self.split, split)
+
+    def eval_batch(self, split: str, noise_std: float = 0.0, limit: int | None = None) -> dict[str, torch.Tensor]:
+        """All (or the first ``limit``) recordings of a split at their fixed windows, with noise of this std."""
+        key = (split, float(noise_std), limit)
+        if key not in self._eval_cache:
+            self.setup()
+            rows = self.rows(split)
+            rng = np.random.default_rng([self.seed, _SPLIT_CODE[split]])
+            starts = rng.integers(0, self.data.n_steps - self.window + 1, size=len(rows))
+            base = rng.standard_normal((len(rows), 2, self.window)) if noise_std > 0 else None
+            if limit is not None:
+                rows, starts = rows[:limit], starts[:limit]
+                base = None if base is None else base[:limit]
+            self._eval_cache[key] = self.data.batch(rows, starts, None if base is None else noise_std * base)
+        return self._eval_cache[key]
+
+    def eval_dataloader(self, split: str, noise_std: float = 0.0, limit: int | None = None) -> DataLoader:
+        full = self.eval_batch(split, noise_std, limit)
+        n = len(full["index"])
+        chunks = [{k: v[i:i + self.eval_batch_size] for k, v in full.items()} for i in range(0, n, self.eval_batch_size)]
+        return DataLoader(chunks, batch_size=None)
+
+    def train_dataloader(self) -> DataLoader:
+        return DataLoader(self.train_windows, batch_size=None)
+
+    def val_dataloader(self) -> DataLoader:
+        return self.eval_dataloader("val", 0.0)
+
+    def test_dataloader(self) -> list[DataLoader]:
+        return [self.eval_dataloader("test", s) for s in self.eval_std]

@@ -1,0 +1,179 @@
+"""Dataset generation (sec. 2.3) and its on-disk cache.
+
+Recordings are stored road-major (recording = road * n_masses + mass index), so a split by road is a
+contiguous range of recordings and no test road is ever seen in training.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import tempfile
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from hybrid_sysid.physics import ROAD_CLASSES, QuarterCar, relative_states, road_profiles, simulate, stable_dt_limit
+
+log = logging.getLogger(__name__)
+
+# Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
+SIMULATOR_VERSION = 1
+CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
+MEASUREMENTS = ("paper", "consistent")
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Every value that changes the simulated data (and nothing else): the cache key hashes all of it."""
+
+    n_roads: int = 40
+    n_masses: int = 50
+    n_steps: int = 1200
+    dt: float = 0.005
+    speed: float = 15.0
+    n_waves: int = 300
+    amplitude: str = "paper"
+    road_classes: tuple = tuple(ROAD_CLASSES)
+    m3_min: int = 50
+    m3_max: int = 200
+    measurement: str = "consistent"
+    seed: int = 0
+    car: QuarterCar = field(default_factory=QuarterCar)
+
+    def validate(self, prefix: str = "data") -> None:
+        """Raise ValueError naming the key, the value and what is allowed; called before any work."""
+        def bad(key, value, allowed):
+            raise ValueError(f"{key} = {value!r} is not allowed: {allowed}")
+
+        if self.n_roads < 2:
+            bad(f"{prefix}.n_roads", self.n_roads, "need at least 2 roads to split by road into train and test")
+        if self.n_masses < 1:
+            bad(f"{prefix}.n_masses", self.n_masses, "must be >= 1")
+        if self.n_steps < 2:
+            bad(f"{prefix}.n_steps", self.n_steps, "must be >= 2")
+        if not self.dt > 0:
+            bad(f"{prefix}.dt", self.dt, "must be > 0 (seconds)")
+        limit = stable_dt_limit(self.car, self.m3_min, self.m3_max) if self.m3_min > 0 else None
+        if limit is not None and self.dt > limit:
+            bad(f"{prefix}.dt", self.dt, f"the semi-implicit Euler scheme is unstable above {limit:.4g} s")
+        if not self.speed > 0:
+            bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
+        if self.n_waves < 2:
+            bad(f"{prefix}.n_waves", self.n_waves, "must be >= 2")
+        if self.amplitude not in ("paper", "iso"):
+            bad(f"{prefix}.amplitude", self.amplitude, "one of paper, iso")
+        if not self.road_classes:
+            bad("road.classes", list(self.road_classes), f"a non-empty list of classes from {', '.join(ROAD_CLASSES)}")
+        for c in self.road_classes:
+            if c not in ROAD_CLASSES:
+                bad("road.classes", list(self.road_classes), f"each class must be one of {', '.join(ROAD_CLASSES)}")
+        if self.m3_min <= 0:
+            bad(f"{prefix}.m3_min", self.m3_min, "must be > 0 kg")
+        if self.m3_max < self.m3_min:
+            bad(f"{prefix}.m3_max", self.m3_max, f"empty mass range: must be >= data.m3_min = {self.m3_min}")
+        if self.measurement not in MEASUREMENTS:
+            bad(f"{prefix}.measurement", self.measurement, f"one of {', '.join(MEASUREMENTS)}")
+
+    def key(self) -> str:
+        payload = asdict(self)
+        payload["road_classes"] = list(self.road_classes)
+        payload["simulator_version"] = SIMULATOR_VERSION
+        return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
+
+
+@dataclass
+class QCMDataset:
+    """Arrays of one simulated dataset. Channels are float32 (n_recordings, n_steps); labels float64."""
+
+    spec: DatasetSpec
+    seat_acc: np.ndarray
+    body_acc: np.ndarray
+    rel_vel: np.ndarray
+    rel_disp: np.ndarray
+    params: np.ndarray  # (n, 2): p1 = C3 / m3, p2 = K3 / m3
+    m3: np.ndarray  # (n,)
+    road_id: np.ndarray  # (n,)
+    road_class: np.ndarray  # (n,) class letters
+
+    def __len__(self) -> int:
+        return self.seat_acc.shape[0]
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, n).nbytes for n in CHANNELS + ("params", "m3", "road_id", "road_class"))
+
+
+def generate_dataset(spec: DatasetSpec, chunk_bytes: int = 64 << 20) -> QCMDataset:
+    """Simulate every mass on every road; roads are processed in chunks to bound the float64 peak."""
+    spec.validate()
+    rng = np.random.default_rng(spec.seed)
+    classes = rng.choice(list(spec.road_classes), size=spec.n_roads)
+    masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float)
+    roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, spec.amplitude, rng)
+
+    n = spec.n_roads * spec.n_masses
+    out = {c: np.empty((n, spec.n_steps), dtype=np.float32) for c in CHANNELS}
+    per_road = spec.n_masses * spec.n_steps * 8 * 6  # float64 working arrays per road
+    step = max(1, chunk_bytes // per_road)
+    for r0 in range(0, spec.n_roads, step):
+        r1 = min(spec.n_roads, r0 + step)
+        seat, body = simulate(roads[r0:r1, None, :], masses[r0:r1], spec.dt, spec.car, spec.measurement)
+        rel_vel, rel_disp = relative_states(seat, body, spec.dt, spec.measurement)
+        rows = slice(r0 * spec.n_masses, r1 * spec.n_masses)
+        # float64 physics ends here: the network and the objectives work in float32
+        for name, arr in zip(CHANNELS, (seat, body, rel_vel, rel_disp)):
+            out[name][rows] = arr.reshape(-1, spec.n_steps)
+    p1, p2 = spec.car.parameters(masses.ravel())
+    return QCMDataset(
+        spec=spec,
+        params=np.stack([p1, p2], axis=1),
+        m3=masses.ravel(),
+        road_id=np.repeat(np.arange(spec.n_roads), spec.n_masses),
+        road_class=np.repeat(classes, spec.n_masses),
+        **out,
+    )
+
+
+def cache_path(spec: DatasetSpec, cache_dir: str | os.PathLike) -> Path:
+    return Path(cache_dir).expanduser() / f"qcm-{spec.key()}.npz"
+
+
+def save_dataset(ds: QCMDataset, path: Path) -> None:
+    """Write atomically: a temporary file in the same folder, then a rename, so a crash leaves nothing loadable."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            np.savez(fh, key=np.array(ds.spec.key()), params=ds.params, m3=ds.m3, road_id=ds.road_id,
+                     road_class=ds.road_class.astype("U1"), **{c: getattr(ds, c) for c in CHANNELS})
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def load_dataset(spec: DatasetSpec, path: Path) -> QCMDataset:
+    with np.load(path, allow_pickle=False) as f:
+        if str(f["key"]) != spec.key():
+            raise ValueError(f"cache file {path} holds another dataset (key {f['key']}, expected {spec.key()})")
+        arrays = {name: f[name] for name in f.files if name != "key"}
+    return QCMDataset(spec=spec, **arrays)
+
+
+def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -> QCMDataset:
+    """Load the dataset from the cache if present, otherwise simulate it and (with a cache_dir) store it."""
+    spec.validate()
+    if cache_dir is None:
+        return generate_dataset(spec)
+    path = cache_path(spec, cache_dir)
+    if path.exists():
+        log.info("loading cached dataset %s", path)
+        return load_dataset(spec, path)
+    log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps, path)
+    ds = generate_dataset(spec)
+    save_dataset(ds, path)
+    return ds
