@@ -1,0 +1,117 @@
+"""Dataset generation, splits and the cache."""
+
+import numpy as np
+import pytest
+
+from hybrid_sysid.data import DatasetSpec, QCMDataModule, generate_dataset, get_dataset, split_by_road
+from hybrid_sysid.data import dataset as dataset_mod
+from hybrid_sysid.physics import QuarterCar
+
+SMALL = DatasetSpec(n_roads=5, n_masses=4, n_steps=300, road_classes=("A", "C", "E"), seed=3)
+
+
+@pytest.fixture(scope="module")
+def small():
+    return generate_dataset(SMALL)
+
+
+def test_layout_labels_and_classes(small):
+    n = 5 * 4
+    assert small.seat_acc.shape == (n, 300) and small.seat_acc.dtype == np.float32
+    for name in ("body_acc", "rel_vel", "rel_disp"):
+        assert getattr(small, name).shape == (n, 300)
+    assert np.all(small.m3 == np.round(small.m3)) and small.m3.min() >= 50 and small.m3.max() <= 200
+    np.testing.assert_allclose(small.params[:, 0], 615.0 / small.m3)
+    np.testing.assert_allclose(small.params[:, 1], 98935.0 / small.m3)
+    assert set(small.road_class) <= {"A", "C", "E"}
+    # road-major: each road's recordings are contiguous and share one class
+    np.testing.assert_array_equal(small.road_id, np.repeat(np.arange(5), 4))
+    for r in range(5):
+        assert len(set(small.road_class[small.road_id == r])) == 1
+
+
+def test_stored_states_give_back_p_by_least_squares(small):
+    # float32 storage: the seat equation holds to float32 rounding, so p comes back far below 1e-3
+    for i in range(len(small)):
+        X = np.stack([-small.rel_vel[i], -small.rel_disp[i]], axis=1).astype(np.float64)
+        p_hat = np.linalg.lstsq(X, small.seat_acc[i].astype(np.float64), rcond=None)[0]
+        np.testing.assert_allclose(p_hat, small.params[i], rtol=1e-3)
+
+
+def test_same_spec_same_data_other_seed_other_data(small):
+    again = generate_dataset(SMALL)
+    np.testing.assert_array_equal(again.seat_acc, small.seat_acc)
+    other = generate_dataset(DatasetSpec(**{**SMALL.__dict__, "seed": 4}))
+    assert not np.allclose(other.seat_acc, small.seat_acc)
+
+
+def test_split_by_road_never_shares_a_road():
+    split = split_by_road(100, 100, 0.8, 0.125)
+    road = lambda idx: set(idx // 100)  # noqa: E731
+    assert road(split.test) == set(range(80, 100))
+    assert road(split.val) == set(range(70, 80))
+    assert road(split.train) == set(range(70))
+    assert not road(split.train) & road(split.test) and not road(split.val) & road(split.test)
+
+
+def test_cache_loads_instead_of_simulating(tmp_path, monkeypatch, small):
+    first = get_dataset(SMALL, tmp_path)
+    files = list(tmp_path.glob("qcm-*.npz"))
+    assert len(files) == 1
+
+    def boom(spec):
+        raise AssertionError("simulated again instead of loading the cache")
+
+    monkeypatch.setattr(dataset_mod, "generate_dataset", boom)
+    second = get_dataset(SMALL, tmp_path)
+    for name in ("seat_acc", "body_acc", "rel_vel", "rel_disp", "params", "m3", "road_id", "road_class"):
+        np.testing.assert_array_equal(getattr(second, name), getattr(first, name))
+
+
+@pytest.mark.parametrize("change", [dict(dt=0.004), dict(seed=9), dict(measurement="paper"), dict(n_waves=200),
+                                    dict(road_classes=("B",)), dict(car=QuarterCar(c3=600.0))])
+def test_cache_key_changes_with_every_value_that_changes_the_data(change):
+    assert DatasetSpec(**{**SMALL.__dict__, **change}).key() != SMALL.key()
+
+
+def test_interrupted_write_leaves_nothing_loadable(tmp_path, monkeypatch):
+    def crash(fh, **arrays):
+        fh.write(b"half a file")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(dataset_mod.np, "savez", crash)
+    with pytest.raises(KeyboardInterrupt):
+        get_dataset(SMALL, tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+BAD = [
+    (dict(road_classes=("A", "Z")), r"road.classes = \['A', 'Z'\] is not allowed: each class must be one of A, B"),
+    (dict(dt=0.0), r"data.dt = 0.0 is not allowed: must be > 0"),
+    (dict(dt=0.5), r"data.dt = 0.5 is not allowed: the semi-implicit Euler scheme is unstable above 0.03"),
+    (dict(speed=-3.0), r"data.speed = -3.0 is not allowed: must be > 0"),
+    (dict(m3_min=120, m3_max=80), r"data.m3_max = 80 is not allowed: empty mass range"),
+    (dict(m3_min=-5), r"data.m3_min = -5 is not allowed: must be > 0"),
+    (dict(n_roads=1), r"data.n_roads = 1 is not allowed: need at least 2 roads"),
+    (dict(measurement="exact"), r"data.measurement = 'exact' is not allowed: one of paper, consistent"),
+]
+
+
+@pytest.mark.parametrize("change, match", BAD)
+def test_bad_values_fail_before_anything_is_written(tmp_path, change, match):
+    with pytest.raises(ValueError, match=match):
+        get_dataset(DatasetSpec(**{**SMALL.__dict__, **change}), tmp_path)
+    assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    (dict(window=301), r"data.window = 301 is not allowed: must lie in \[1, data.n_steps = 300\]"),
+    (dict(train_fraction=1.0), r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
+    (dict(train_fraction=0.2), r"data.n_roads = 5 is too few for data.train_fraction = 0.2"),
+    (dict(eval_std=[0.0, -0.01]), r"noise std -0.01 is not allowed"),
+    (dict(batch_size=0), r"data.batch_size = 0 is not allowed"),
+])
+def test_bad_datamodule_values_fail_before_anything_is_written(tmp_path, kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        QCMDataModule(SMALL, cache_dir=str(tmp_path), **({"window": 100} | kwargs))
+    assert list(tmp_path.iterdir()) == []
