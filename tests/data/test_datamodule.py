@@ -31,7 +31,8 @@ def window_start(dm, row, seat_window):
 def test_training_batches_are_windows_of_training_recordings(dm):
     starts = []
     seen = []
-    for batch in dm.train_dataloader():
+    stream = dm.train_windows
+    for batch in stream.one_pass(0):
         assert batch["signals"].shape[1:] == (2, 100)
         for i, row in enumerate(batch["index"].numpy()):
             assert row in dm.split.train
@@ -41,14 +42,19 @@ def test_training_batches_are_windows_of_training_recordings(dm):
             np.testing.assert_allclose(batch["params"][i].numpy(), dm.dataset.params[row], rtol=1e-6)
             starts.append(s)
         seen.extend(batch["index"].tolist())
-    assert sorted(seen) == sorted(dm.split.train.tolist())  # one epoch = each training recording once
+    assert sorted(seen) == sorted(dm.split.train.tolist())  # one pass = each training recording once
     assert len(set(starts)) > len(starts) // 2  # starts spread over the valid range
 
 
-def test_each_epoch_draws_new_windows_and_a_seed_repeats_them():
+def test_each_pass_draws_new_windows_and_a_seed_repeats_them():
     a, b = make(seed=5), make(seed=5)
-    a1, a2 = next(iter(a.train_dataloader())), next(iter(a.train_dataloader()))
+    it = iter(a.train_dataloader())
+    a1 = next(it)
+    for _ in range(a.train_windows.batches_per_pass - 1):
+        next(it)
+    a2 = next(it)  # first batch of the second pass
     b1 = next(iter(b.train_dataloader()))
+    assert torch.equal(a2["signals"], next(iter(a.train_windows.one_pass(1)))["signals"])
     assert torch.equal(a1["signals"], b1["signals"])
     assert not torch.equal(a1["signals"], a2["signals"])
     assert not torch.equal(a1["signals"], next(iter(make(seed=6).train_dataloader()))["signals"])

@@ -1,0 +1,3 @@
+from hybrid_sysid.train import main
+
+main()

@@ -1,0 +1,1 @@
+"""Metrics, run records, tables and figures."""

@@ -1,0 +1,109 @@
+"""ParameterEstimator: a network, a swappable objective, the optimiser, and evaluation on fixed windows."""
+
+from __future__ import annotations
+
+import math
+import time
+
+import lightning as L
+import numpy as np
+import torch
+from torch import nn
+
+from hybrid_sysid.evaluation.metrics import relative_deviation, summarise
+
+OPTIMIZERS = {"adam": torch.optim.Adam, "adamw": torch.optim.AdamW}
+SCHEDULES = ("constant", "onecycle", "cosine")
+
+
+class ParameterEstimator(L.LightningModule):
+    """Predicts (p1, p2) from a window of (seat, body) accelerations.
+
+    The network maps signals to physical (p1, p2); the objective maps (pred, batch) to a loss. Validation logs
+    ``val/loss`` (the training objective on clean validation windows: label-free for the hybrid objective) and
+    ``val/rel_dev`` (mean relative deviation over both parameters: uses labels).
+    Every validation also records learning-curve rows (training subset and test at each noise level) when
+    ``curve_sets`` is given, as (split, noise_std) pairs evaluated through the data module.
+    """
+
+    def __init__(self, net: nn.Module, objective: nn.Module, optimizer: str = "adamw", lr: float = 3e-3,
+                 weight_decay: float = 0.0, schedule: str = "onecycle", max_steps: int = 1000,
+                 warmup_fraction: float = 0.3, curve_sets: tuple = (), curve_train_limit: int = 1000):
+        super().__init__()
+        if optimizer not in OPTIMIZERS:
+            raise ValueError(f"model.optim.name = {optimizer!r} is unknown; allowed: {', '.join(OPTIMIZERS)}")
+        if not lr > 0:
+            raise ValueError(f"model.optim.lr = {lr} is not allowed: must be > 0")
+        if schedule not in SCHEDULES:
+            raise ValueError(f"model.optim.schedule = {schedule!r} is unknown; allowed: {', '.join(SCHEDULES)}")
+        # only plain values in the hyperparameters, so checkpoints load with torch's weights_only default
+        self.save_hyperparameters(ignore=["net", "objective"])
+        self.net, self.objective = net, objective
+        self.curve_rows: list[dict] = []
+        self._t0: float | None = None
+        self._val_pred: list[torch.Tensor] = []
+        self._val_true: list[torch.Tensor] = []
+        self._val_loss: list[torch.Tensor] = []
+
+    def forward(self, signals: torch.Tensor) -> torch.Tensor:
+        return self.net(signals)
+
+    def training_step(self, batch, batch_idx):
+        if self._t0 is None:
+            self._t0 = time.perf_counter()
+        loss = self.objective(self(batch["signals"]), batch)
+        if not torch.isfinite(loss):
+            raise FloatingPointError(f"training loss is {loss.item()} at step {self.global_step}; "
+                                     "lower model.optim.lr or check the data")
+        self.log("train/loss", loss, prog_bar=True, batch_size=len(batch["signals"]))
+        return loss
+
+    def validation_step(self, batch, batch_idx):
+        pred = self(batch["signals"])
+        self._val_loss.append(self.objective(pred, batch).detach() * len(pred))
+        self._val_pred.append(pred.detach())
+        self._val_true.append(batch["params"])
+
+    def on_validation_epoch_end(self):
+        pred, true = torch.cat(self._val_pred), torch.cat(self._val_true)
+        loss = torch.stack(self._val_loss).sum() / len(pred)
+        self._val_pred, self._val_true, self._val_loss = [], [], []
+        dev = relative_deviation(pred.cpu().numpy(), true.cpu().numpy())
+        self.log("val/loss", loss)
+        self.log("val/rel_dev", float(dev.mean()), prog_bar=True)
+        self.log("val/p1_rel_dev", float(dev[:, 0].mean()))
+        self.log("val/p2_rel_dev", float(dev[:, 1].mean()))
+        if self.trainer.sanity_checking or not self.hparams.curve_sets:
+            return
+        elapsed = 0.0 if self._t0 is None else time.perf_counter() - self._t0
+        dm = self.trainer.datamodule
+        for split, std in self.hparams.curve_sets:
+            limit = self.hparams.curve_train_limit if split == "train" else None
+            p, t = self.predict_split(dm, split, std, limit)
+            self.curve_rows += summarise(p, t, step=self.global_step, seconds=round(elapsed, 3),
+                                         split=split, noise_std=std)
+
+    @torch.no_grad()
+    def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None):
+        """Predictions and truth (numpy) on a split's fixed windows at one noise level."""
+        was_training = self.training
+        self.eval()
+        preds, trues = [], []
+        for batch in dm.eval_dataloader(split, noise_std, limit):
+            preds.append(self(batch["signals"].to(self.device)).cpu())
+            trues.append(batch["params"])
+        self.train(was_training)
+        return torch.cat(preds).numpy().astype(np.float64), torch.cat(trues).numpy().astype(np.float64)
+
+    def configure_optimizers(self):
+        hp = self.hparams
+        opt = OPTIMIZERS[hp.optimizer](self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
+        if hp.schedule == "constant":
+            return opt
+        if hp.schedule == "onecycle":
+            sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=hp.lr, total_steps=max(hp.max_steps, 2),
+                                                        pct_start=hp.warmup_fraction)
+        else:
+            sched = torch.optim.lr_scheduler.LambdaLR(
+                opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, hp.max_steps) / max(hp.max_steps, 1))))
+        return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}

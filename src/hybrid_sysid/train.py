@@ -1,0 +1,148 @@
+"""The Hydra entry point: one run = build the data and the model, fit, evaluate the best checkpoint, record.
+
+``train(cfg, run_dir)`` is plain Python (tests call it in process); ``main`` is the thin Hydra wrapper.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+import time
+from pathlib import Path
+
+import hydra
+import lightning as L
+import numpy as np
+import pandas as pd
+import torch
+from hydra.core.hydra_config import HydraConfig
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.data import DatasetSpec, QCMDataModule
+from hybrid_sysid.evaluation import plots
+from hybrid_sysid.evaluation.metrics import summarise
+from hybrid_sysid.evaluation.records import RECORD, run_record, write_json_atomic
+from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.physics import QuarterCar
+
+log = logging.getLogger("hybrid_sysid")
+CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
+
+
+def build_datamodule(cfg: DictConfig) -> QCMDataModule:
+    d = cfg.data
+    spec = DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
+                       n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
+                       m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
+                       car=QuarterCar(**cfg.get("car", {})))
+    return QCMDataModule(spec, cache_dir=d.cache_dir, window=d.window, batch_size=cfg.model.batch_size,
+                         train_fraction=d.train_fraction, val_fraction=d.val_fraction,
+                         eval_std=list(cfg.noise.eval_std), train_std=cfg.noise.train_std, seed=cfg.seed)
+
+
+def build_model(cfg: DictConfig, curve_sets=()) -> ParameterEstimator:
+    net = instantiate(cfg.model.net, _convert_="all")
+    objective = instantiate(cfg.objective, _convert_="all")
+    o = cfg.model.optim
+    return ParameterEstimator(net, objective, optimizer=o.name, lr=o.lr, weight_decay=o.weight_decay,
+                              schedule=o.schedule, max_steps=cfg.trainer.max_steps,
+                              warmup_fraction=o.get("warmup_fraction", 0.3), curve_sets=tuple(curve_sets))
+
+
+def monitor_of(cfg: DictConfig, objective) -> str:
+    """'auto' selects by the training objective on validation windows when it reads no labels (hybrid), so a
+    label-free run stays label-free; by the labelled relative deviation otherwise."""
+    m = cfg.trainer.monitor
+    if m == "auto":
+        return "val/rel_dev" if getattr(objective, "uses_labels", True) else "val/loss"
+    return m
+
+
+def evaluate(model: ParameterEstimator, dm: QCMDataModule, noise_levels) -> tuple[list[dict], pd.DataFrame]:
+    """Relative deviations per split and noise level, plus one prediction row per recording."""
+    results, frames = [], []
+    evals = [("train", 0.0), ("val", 0.0)] + [("test", float(s)) for s in noise_levels]
+    for split, std in evals:
+        pred, true = model.predict_split(dm, split, std)
+        results += summarise(pred, true, split=split, noise_std=std)
+        rows = dm.rows(split)
+        frames.append(pd.DataFrame({
+            "split": split, "noise_std": std, "recording": rows, "road_class": dm.dataset.road_class[rows],
+            "m3": dm.dataset.m3[rows], "p1_true": true[:, 0], "p1_pred": pred[:, 0],
+            "p2_true": true[:, 1], "p2_pred": pred[:, 1]}))
+    return results, pd.concat(frames, ignore_index=True)
+
+
+def console_table(results: list[dict]) -> str:
+    df = pd.DataFrame(results)
+    df = df[df.split != "val"]
+    table = df.pivot_table(index=["split", "noise_std"], columns="parameter", values="mean_rel_dev")
+    return (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
+
+
+def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
+    """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/."""
+    run_dir = Path(run_dir)
+    run_dir.mkdir(parents=True, exist_ok=True)
+    t = cfg.trainer
+    if t.get("threads"):
+        torch.set_num_threads(int(t.threads))
+    L.seed_everything(cfg.seed, workers=True)  # 0 included
+
+    dm = build_datamodule(cfg)
+    noise_levels = [float(s) for s in cfg.noise.eval_std]
+    curve_sets = [("train", 0.0)] + [("test", s) for s in noise_levels]
+    model = build_model(cfg, curve_sets)
+    monitor = monitor_of(cfg, model.objective)
+
+    ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
+                                               mode="min", save_last=True, auto_insert_metric_name=False)
+    trainer = L.Trainer(
+        max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
+        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=False,
+        callbacks=[ckpt], enable_progress_bar=t.progress_bar, enable_model_summary=False,
+        num_sanity_val_steps=0, default_root_dir=str(run_dir), **t.get("extra", {}))
+    dm.setup("fit")
+    start = time.perf_counter()
+    trainer.fit(model, datamodule=dm)
+    train_seconds = time.perf_counter() - start
+
+    if ckpt.best_model_path:
+        state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
+        model.load_state_dict(state)
+    results, predictions = evaluate(model, dm, noise_levels)
+    curves = pd.DataFrame(model.curve_rows)
+    curves.to_csv(run_dir / "curves.csv", index=False)
+    predictions.to_csv(run_dir / "predictions.csv", index=False)
+
+    figures = run_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    for std in noise_levels:
+        sub = predictions[(predictions.split == "test") & (predictions.noise_std == std)]
+        plots.predictions_figure(sub, figures / f"test_noise{std:g}.png", f"test, noise std {std:g} m/s^2")
+    if len(curves):
+        plots.learning_curves_figure(curves, figures / "learning_curves.png")
+
+    record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
+                        results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None)
+    write_json_atomic(run_dir / RECORD, record)
+    log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
+    return record
+
+
+@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
+def main(cfg: DictConfig) -> dict:
+    hc = HydraConfig.get()
+    run_dir = Path(hc.runtime.output_dir)
+    overrides = list(hc.overrides.task)
+    try:
+        return train(cfg, run_dir, overrides)
+    except Exception as exc:  # record the failure where the sweep summary will look for it
+        write_json_atomic(run_dir / RECORD, run_record("failed", overrides, cfg.get("seed", 0),
+                                                       error=f"{type(exc).__name__}: {exc}"))
+        raise
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,28 @@
+import os
+
+import pytest
+from hydra import compose, initialize_config_dir
+
+from hybrid_sysid.train import CONF_DIR
+
+
+@pytest.fixture
+def make_cfg(tmp_path):
+    """Compose the app's config with overrides; the dataset cache goes to a per-test folder."""
+    def _make(*overrides):
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            return compose(config_name="config",
+                           overrides=[f"data.cache_dir={tmp_path / 'cache'}", "trainer.progress_bar=false",
+                                      *overrides])
+    return _make
+
+
+@pytest.fixture(autouse=True)
+def _two_threads():
+    import torch
+    n = torch.get_num_threads()
+    yield
+    torch.set_num_threads(n)  # the basic launcher and tests share one process: restore global state
+
+
+os.environ.setdefault("HYDRA_FULL_ERROR", "1")

@@ -1,0 +1,60 @@
+"""One run end to end, in process: the record, its files, and reproducibility."""
+
+import json
+
+import pandas as pd
+import pytest
+
+from hybrid_sysid.train import train
+
+TINY = ["data=tiny", "trainer=debug", "noise.eval_std=[0.0,0.05]"]
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.train import CONF_DIR
+    tmp = tmp_path_factory.mktemp("run")
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[*TINY, f"data.cache_dir={tmp / 'cache'}",
+                                                        "trainer.progress_bar=false"])
+    return train(cfg, tmp / "run", overrides=TINY), tmp / "run"
+
+
+def test_record_follows_the_schema(tiny_run):
+    record, run_dir = tiny_run
+    on_disk = json.loads((run_dir / "metrics.json").read_text())
+    assert on_disk == json.loads(json.dumps(record))
+    assert on_disk["status"] == "completed" and on_disk["error"] is None
+    assert on_disk["overrides"] == TINY and on_disk["seed"] == 0 and on_disk["steps"] == 20
+    keys = {(r["split"], r["noise_std"], r["parameter"]) for r in on_disk["results"]}
+    expected = {(s, n, p) for s, n in [("train", 0.0), ("val", 0.0), ("test", 0.0), ("test", 0.05)]
+                for p in ("p1", "p2")}
+    assert keys == expected
+    for r in on_disk["results"]:
+        assert r["mean_rel_dev"] >= 0 and r["std_rel_dev"] >= 0 and r["n"] > 0
+
+
+def test_predictions_and_curves_agree_with_the_record(tiny_run):
+    record, run_dir = tiny_run
+    pred = pd.read_csv(run_dir / "predictions.csv")
+    for r in record["results"]:
+        sub = pred[(pred.split == r["split"]) & (pred.noise_std == r["noise_std"])]
+        p = r["parameter"]
+        dev = (sub[f"{p}_true"] - sub[f"{p}_pred"]).abs() / sub[f"{p}_true"]
+        assert len(sub) == r["n"]
+        assert dev.mean() == pytest.approx(r["mean_rel_dev"], rel=1e-9)
+    curves = pd.read_csv(run_dir / "curves.csv")
+    assert sorted(curves.step.unique()) == [10, 20]
+    assert set(curves.split) == {"train", "test"} and set(curves.noise_std) == {0.0, 0.05}
+    for name in ("learning_curves.png", "test_noise0.png", "test_noise0.05.png"):
+        assert (run_dir / "figures" / name).stat().st_size > 10_000
+
+
+def test_same_seed_same_numbers_other_seed_other_numbers(make_cfg, tmp_path, tiny_run):
+    record, _ = tiny_run
+    again = train(make_cfg(*TINY), tmp_path / "again")
+    assert again["results"] == record["results"]
+    other = train(make_cfg(*TINY, "seed=1"), tmp_path / "other")
+    assert other["results"] != record["results"]
