@@ -16,6 +16,7 @@ import numpy as np
 import pandas as pd
 import torch
 from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
@@ -139,8 +140,12 @@ def main(cfg: DictConfig) -> dict:
     try:
         return train(cfg, run_dir, overrides)
     except Exception as exc:  # record the failure where the sweep summary will look for it
-        write_json_atomic(run_dir / RECORD, run_record("failed", overrides, cfg.get("seed", 0),
-                                                       error=f"{type(exc).__name__}: {exc}"))
+        error = f"{type(exc).__name__}: {exc}"
+        run_dir.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(run_dir / RECORD, run_record("failed", overrides, cfg.get("seed", 0), error=error))
+        if hc.mode == RunMode.MULTIRUN:  # let the other jobs run; the sweep summary exits non-zero
+            log.error("job failed: %s", error)
+            return {"status": "failed", "error": error}
         raise
 
 

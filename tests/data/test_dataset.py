@@ -109,7 +109,7 @@ def test_bad_values_fail_before_anything_is_written(tmp_path, change, match):
     (dict(train_fraction=1.0), r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
     (dict(train_fraction=0.2), r"data.n_roads = 5 is too few for data.train_fraction = 0.2"),
     (dict(eval_std=[0.0, -0.01]), r"noise std -0.01 is not allowed"),
-    (dict(batch_size=0), r"data.batch_size = 0 is not allowed"),
+    (dict(batch_size=0), r"model.batch_size = 0 is not allowed"),
 ])
 def test_bad_datamodule_values_fail_before_anything_is_written(tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):

@@ -152,7 +152,7 @@ class QCMDataModule(L.LightningDataModule):
         if window < 1 or window > spec.n_steps:
             raise ValueError(f"data.window = {window} is not allowed: must lie in [1, data.n_steps = {spec.n_steps}]")
         if batch_size < 1:
-            raise ValueError(f"data.batch_size = {batch_size} is not allowed: must be >= 1")
+            raise ValueError(f"model.batch_size = {batch_size} is not allowed: must be >= 1")
         for s in list(eval_std) + [train_std]:
             if not s >= 0:
                 raise ValueError(f"noise std {s} is not allowed: noise.eval_std and noise.train_std must be >= 0")
