@@ -1,0 +1,74 @@
+"""Fake run and sweep directories shaped like train.py's records (no training is run); imported by the tests,
+so it is not a conftest (two conftest modules would shadow each other on sys.path)."""
+
+import json
+import zlib
+from pathlib import Path
+
+import numpy as np
+
+NOISES = [0.0, 0.003, 0.01, 0.1]
+PARAMS = ["p1", "p2"]
+OBJECTIVES = ["labelled", "hybrid"]
+SEEDS = [0, 1]
+FAILED_ERROR = "RuntimeError: loss is nan at step 120\nwhile training"
+
+
+def _results(rng) -> list[dict]:
+    evals = [("train", 0.0), ("val", 0.0)] + [("test", s) for s in NOISES]
+    # random values with all their digits, so the summary must carry numbers exactly, not to a few decimals
+    return [{"split": split, "noise_std": std, "parameter": p, "mean_rel_dev": float(rng.uniform(0.01, 0.4)),
+             "std_rel_dev": float(rng.uniform(0.005, 0.2)), "n": 40} for split, std in evals for p in PARAMS]
+
+
+def _curves(run_dir: Path, rng) -> None:
+    lines = ["step,seconds,split,noise_std,parameter,mean_rel_dev,std_rel_dev,n"]
+    for step in (100, 200, 300):
+        for split, std in [("train", 0.0)] + [("test", s) for s in NOISES]:
+            for p in PARAMS:
+                lines.append(f"{step},{step / 10},{split},{std},{p},{rng.uniform(0.01, 0.4) / step * 100},"
+                             f"{rng.uniform(0.01, 0.1)},40")
+    (run_dir / "curves.csv").write_text("\n".join(lines) + "\n")
+
+
+def make_run(run_dir: Path, overrides: list[str], seed: int, status: str = "completed", error=None,
+             corrupt: bool = False, hydra: bool = True) -> Path:
+    run_dir.mkdir(parents=True)
+    rng = np.random.default_rng(zlib.crc32(f"{run_dir}".encode()))
+    if hydra:  # Hydra writes this before the job runs
+        (run_dir / ".hydra").mkdir()
+        (run_dir / ".hydra" / "overrides.yaml").write_text("".join(f"- {o}\n" for o in overrides))
+    if corrupt:  # e.g. a job killed while a non-atomic writer was at work
+        (run_dir / "metrics.json").write_text('{"status": "completed", "results": [{"split": "te')
+        return run_dir
+    completed = status == "completed"
+    record = {"status": status, "error": error, "overrides": overrides, "seed": seed,
+              "steps": 300 if completed else 0, "train_seconds": 12.34 + seed if completed else 0.0,
+              "results": _results(rng) if completed else [], "monitor": "val/rel_dev"}
+    (run_dir / "metrics.json").write_text(json.dumps(record, indent=2))
+    if completed:
+        _curves(run_dir, rng)
+        (run_dir / "predictions.csv").write_text("split,noise_std,p1_true,p1_pred\ntest,0.0,5.0,5.1\n")
+    return run_dir
+
+
+def make_sweep(sweep: Path, failed: bool = True, extra: tuple = ()) -> Path:
+    """2 objectives x 2 seeds (jobs 0-3); with failed=True also a failed hybrid job (4) and a labelled job whose
+    metrics.json is corrupt (5), as Hydra's multirun lays them out: SWEEP/<job number>/."""
+    job = 0
+    for objective in OBJECTIVES:
+        for seed in SEEDS:
+            make_run(sweep / str(job), [f"objective={objective}", f"seed={seed}", "noise=ladder", *extra], seed)
+            job += 1
+    if failed:
+        make_run(sweep / "4", ["objective=hybrid", "seed=2", "noise=ladder", *extra], 2, status="failed",
+                 error=FAILED_ERROR)
+        make_run(sweep / "5", ["objective=labelled", "seed=2", "noise=ladder", *extra], 2, corrupt=True)
+    return sweep
+
+
+def parse_markdown(text: str) -> list[dict]:
+    """The first markdown table in text as a list of {header: cell}."""
+    lines = [ln for ln in text.splitlines() if ln.startswith("|")]
+    split = [[c.strip() for c in ln.strip("|").split(" | ")] for ln in lines]
+    return [dict(zip(split[0], row)) for row in split[2:]]

@@ -1,0 +1,64 @@
+"""hybrid-sysid-report: files written, tables printed, exit codes 0 / 1 / 2, and the sweep figures."""
+
+import matplotlib.image as mpimg
+import numpy as np
+import pandas as pd
+import pytest
+from evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
+
+from hybrid_sysid.report import main
+
+PNG = b"\x89PNG\r\n\x1a\n"
+
+
+def assert_real_png(path):
+    """A PNG with a drawn plot in it, not an empty canvas."""
+    assert path.read_bytes()[:8] == PNG and path.stat().st_size > 10_000
+    img = mpimg.imread(path)[..., :3]
+    assert img.shape[0] > 300 and img.shape[1] > 500
+    colours = np.unique((img * 255).astype(np.uint8).reshape(-1, 3), axis=0)
+    assert len(colours) > 50 and (img < 0.5).mean() > 0.005  # anti-aliased lines, text and markers
+
+
+def test_report_on_sweep_with_failures_writes_everything_and_returns_1(sweep, capsys):
+    assert main([str(sweep)]) == 1  # default --out: the single PATH
+    out = capsys.readouterr().out
+    for name in ("summary.csv", "summary.md"):
+        assert (sweep / name).is_file()
+    rows = parse_markdown(out)
+    assert [r["objective"] for r in rows] == sorted(OBJECTIVES) and out in (sweep / "summary.md").read_text()
+    assert set(pd.read_csv(sweep / "summary.csv").status) == {"completed", "failed", "unreadable"}
+    assert_real_png(sweep / "figures" / "robustness.png")
+    assert_real_png(sweep / "figures" / "learning_curves_compared.png")
+
+
+def test_report_merges_sweeps_into_report_dir_and_returns_0(tmp_path, monkeypatch, capsys):
+    a = make_sweep(tmp_path / "a", failed=False)
+    b = make_sweep(tmp_path / "b", failed=False, extra=("road=C",))
+    monkeypatch.chdir(tmp_path)
+    assert main([str(a), str(b), "--metric", "std_rel_dev"]) == 0
+    df = pd.read_csv(tmp_path / "report" / "summary.csv", keep_default_na=False)
+    assert sorted(df.run.unique()) == sorted(f"{s}/{j}" for s in "ab" for j in range(4))  # no name clash
+    rows = parse_markdown(capsys.readouterr().out)
+    assert [(r["objective"], r["road"], r["seeds"]) for r in rows] == [
+        ("hybrid", "(default)", "2"), ("hybrid", "C", "2"), ("labelled", "(default)", "2"), ("labelled", "C", "2")]
+    assert (tmp_path / "report" / "figures" / "robustness.png").is_file()
+
+
+def test_report_on_a_single_run_and_out_option(tmp_path, capsys):
+    run = make_run(tmp_path / "runs" / "2026-01-01_12-00-00", ["seed=0"], 0)
+    assert main([str(run), "--out", str(tmp_path / "out"), "--split", "val"]) == 0
+    [row] = parse_markdown(capsys.readouterr().out)
+    assert row["all"] == "all" and list(row)[1] == "noise 0 p1 [%]"  # val is evaluated at noise 0 only
+    assert pd.read_csv(tmp_path / "out" / "summary.csv").run.unique().tolist() == [run.name]
+
+
+@pytest.mark.parametrize("case", ["missing", "empty"])
+def test_report_returns_2_with_one_line_for_a_path_without_runs(tmp_path, sweep, capsys, case):
+    bad = tmp_path / "nope"
+    if case == "empty":
+        bad.mkdir()
+    assert main([str(sweep), str(bad), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and str(bad) in err and "error" in err
+    assert not (tmp_path / "out").exists()
