@@ -1,0 +1,90 @@
+"""Multirun sweeps in a subprocess, as a user launches them: summary, failures, joblib, the report command."""
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+
+TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
+        "trainer.progress_bar=false"]
+
+
+def run_app(tmp_path, *args):
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
+    return subprocess.run([sys.executable, "-m", "hybrid_sysid", *args], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+
+
+@pytest.fixture(scope="module")
+def sweep(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("sweep")
+    proc = run_app(tmp, "-m", "objective=labelled,hybrid", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp / 'sw'}")
+    return proc, tmp / "sw"
+
+
+def test_summary_csv_equals_the_jobs_records(sweep):
+    proc, sw = sweep
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_csv(sw / "summary.csv", dtype={"run": str})
+    jobs = sorted(p for p in sw.iterdir() if (p / "metrics.json").exists())
+    assert len(jobs) == 4
+    for job in jobs:
+        record = json.loads((job / "metrics.json").read_text())
+        assert record["status"] == "completed"
+        for r in record["results"]:
+            row = summary[(summary.run == job.name) & (summary.split == r["split"])
+                          & (summary.noise_std == r["noise_std"]) & (summary.parameter == r["parameter"])]
+            assert len(row) == 1
+            assert row.mean_rel_dev.item() == r["mean_rel_dev"] and row.std_rel_dev.item() == r["std_rel_dev"]
+            assert str(row.objective.item()) in record["overrides"][0]
+
+
+def test_markdown_table_is_mean_and_spread_over_seeds(sweep):
+    proc, sw = sweep
+    md = (sw / "summary.md").read_text()
+    table = next(block for block in md.split("\n\n") if block.startswith("| objective |"))
+    assert table in proc.stdout  # the table is printed too
+    for objective in ("labelled", "hybrid"):
+        vals = []
+        for job in sw.iterdir():
+            if (job / "metrics.json").exists():
+                rec = json.loads((job / "metrics.json").read_text())
+                if f"objective={objective}" in rec["overrides"]:
+                    vals += [r["mean_rel_dev"] for r in rec["results"]
+                             if r["split"] == "test" and r["noise_std"] == 0.0 and r["parameter"] == "p1"]
+        cell = f"{100 * np.mean(vals):.2f} ± {100 * np.std(vals, ddof=1):.2f}"
+        line = next(ln for ln in md.splitlines() if ln.startswith(f"| {objective} |"))
+        assert line.split("|")[2].strip() == cell
+    assert (sw / "figures" / "robustness.png").stat().st_size > 10_000
+
+
+def test_report_rebuilds_the_same_table(sweep, tmp_path):
+    _, sw = sweep
+    out = tmp_path / "report"
+    proc = subprocess.run([sys.executable, "-m", "hybrid_sysid.report", str(sw), "--out", str(out)],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert (out / "summary.md").read_text().split("\n\n")[1:] == (sw / "summary.md").read_text().split("\n\n")[1:]
+    pd.testing.assert_frame_equal(pd.read_csv(out / "summary.csv"), pd.read_csv(sw / "summary.csv"))
+
+
+def test_a_failing_job_is_a_row_and_the_sweep_exits_nonzero(tmp_path):
+    proc = run_app(tmp_path, "-m", "model.optim.lr=0.003,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}")
+    assert proc.returncode != 0
+    summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
+    failed = summary[summary.status == "failed"]
+    assert len(failed) == 1 and "model.optim.lr = -1" in failed.error.item()
+    assert (summary[summary.status == "completed"].run.nunique()) == 1
+    assert "1 of 2 jobs failed" in proc.stderr + proc.stdout
+
+
+def test_joblib_launcher_runs_jobs_in_parallel_processes(tmp_path):
+    proc = run_app(tmp_path, "-m", "launcher=joblib", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
+    assert set(summary.status) == {"completed"} and summary.run.nunique() == 2
+    assert "JoblibLauncher" in (tmp_path / "sw" / "multirun.yaml").read_text()
