@@ -107,7 +107,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     dm.setup("fit")
     start = time.perf_counter()
     trainer.fit(model, datamodule=dm)
-    train_seconds = time.perf_counter() - start
+    fit_seconds = time.perf_counter() - start
+    train_seconds = fit_seconds - model._eval_seconds  # periodic evaluations excluded
 
     if ckpt.best_model_path:
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
@@ -126,7 +127,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
         plots.learning_curves_figure(curves, figures / "learning_curves.png")
 
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
-                        results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None)
+                        results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
+                        fit_seconds=round(fit_seconds, 2))
     write_json_atomic(run_dir / RECORD, record)
     log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
     return record

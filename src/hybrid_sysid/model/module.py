@@ -41,6 +41,8 @@ class ParameterEstimator(L.LightningModule):
         self.net, self.objective = net, objective
         self.curve_rows: list[dict] = []
         self._t0: float | None = None
+        self._eval_seconds = 0.0  # time spent evaluating, kept out of the curves' training time
+        self._eval_t0 = 0.0
         self._val_pred: list[torch.Tensor] = []
         self._val_true: list[torch.Tensor] = []
         self._val_loss: list[torch.Tensor] = []
@@ -57,6 +59,12 @@ class ParameterEstimator(L.LightningModule):
                                      "lower model.optim.lr or check the data")
         self.log("train/loss", loss, prog_bar=True, batch_size=len(batch["signals"]))
         return loss
+
+    def on_validation_start(self):
+        self._eval_t0 = time.perf_counter()
+
+    def on_validation_end(self):
+        self._eval_seconds += time.perf_counter() - self._eval_t0
 
     def validation_step(self, batch, batch_idx):
         pred = self(batch["signals"])
@@ -75,7 +83,9 @@ class ParameterEstimator(L.LightningModule):
         self.log("val/p2_rel_dev", float(dev[:, 1].mean()))
         if self.trainer.sanity_checking or not self.hparams.curve_sets:
             return
-        elapsed = 0.0 if self._t0 is None else time.perf_counter() - self._t0
+        # training seconds so far: wall time since the first step minus earlier evaluations and this one
+        now = time.perf_counter()
+        elapsed = 0.0 if self._t0 is None else now - self._t0 - self._eval_seconds - (now - self._eval_t0)
         dm = self.trainer.datamodule
         for split, std in self.hparams.curve_sets:
             limit = self.hparams.curve_train_limit if split == "train" else None
