@@ -88,3 +88,25 @@ def test_joblib_launcher_runs_jobs_in_parallel_processes(tmp_path):
     summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
     assert set(summary.status) == {"completed"} and summary.run.nunique() == 2
     assert "JoblibLauncher" in (tmp_path / "sw" / "multirun.yaml").read_text()
+
+
+def test_slurm_path_through_submitits_local_executor(tmp_path):
+    pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
+    proc = run_app(tmp_path, "-m", "launcher=submitit_local", "seed=0,1", *TINY, "trainer.max_steps=4",
+                   "trainer.eval_every_n_steps=2", f"hydra.sweep.dir={tmp_path / 'sw'}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
+    assert set(summary.status) == {"completed"} and summary.run.nunique() == 2
+    assert (tmp_path / "sw" / ".submitit").is_dir()
+
+
+def test_sweeps_started_together_get_their_own_directories(tmp_path):
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
+    args = [sys.executable, "-m", "hybrid_sysid", "-m", "seed=0", *TINY, "trainer.max_steps=2",
+            "trainer.eval_every_n_steps=1"]
+    procs = [subprocess.Popen(args, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+             for _ in range(2)]
+    assert [p.wait(timeout=600) for p in procs] == [0, 0]
+    sweeps = list((tmp_path / "outputs" / "multirun").iterdir())
+    assert len(sweeps) == 2
+    assert all((s / "summary.csv").exists() and (s / "0" / "metrics.json").exists() for s in sweeps)
