@@ -1,19 +1,85 @@
-"""How long the paper-size dataset (100 roads x 100 masses x 6000 steps) takes to simulate, and its memory.
+"""Dataset generation, paper size (100 roads x 100 masses x 6000 steps): fast path against a reference.
 
-    python benchmarks/dataset_generation.py [--roads 100 --masses 100 --steps 6000]
+    python benchmarks/dataset_generation.py [--roads 100 --masses 100 --steps 6000 --dt 0.001] [--scaling]
 
-Prints wall time per stage (roads, simulation + re-integration, total), the dataset's size in memory and the
-process's peak resident memory (which includes Python, numpy and torch imports: about 0.1 GB).
+Reference, timed in the same run: a straightforward vectorised numpy implementation (roads by a dense
+sin evaluation over (roads, waves, steps); the eq.-11 loop over time vectorised over all recordings; then
+re-integration by np.cumsum). The project's path: roads from one shared sine basis and two matrix products,
+then the compiled fused kernel (physics.fused). Both are compared for equality in float64 (1e-12 relative).
+Peak memory is measured in a fresh subprocess running the project's generate_dataset alone.
+--scaling also times the fast path against the number of recordings and of steps and draws a plot.
 """
 
 import argparse
-import resource
+import subprocess
+import sys
 import time
+from pathlib import Path
 
 import numpy as np
 
-from hybrid_sysid.data import DatasetSpec, generate_dataset
-from hybrid_sysid.physics import road_profiles
+from hybrid_sysid.data import DatasetSpec
+from hybrid_sysid.physics import QuarterCar, fused, relative_states, road_profiles, simulate, wave_amplitudes, wave_numbers
+
+
+def reference_roads(classes, n_steps, dt, speed, phases):
+    """Eq. 2 by a dense sin over (roads, waves, steps), chunked by road only to bound memory."""
+    w = wave_numbers(phases.shape[1])
+    s = speed * dt * np.arange(n_steps)
+    out = np.empty((len(classes), n_steps))
+    for j, c in enumerate(classes):
+        amp = wave_amplitudes(c, phases.shape[1])
+        out[j] = (amp[:, None] * np.sin(w[:, None] * s[None, :] - phases[j][:, None])).sum(axis=0)
+    return out
+
+
+def reference(spec, classes, masses, phases):
+    t0 = time.perf_counter()
+    roads = reference_roads(classes, spec.n_steps, spec.dt, spec.speed, phases)
+    t_roads = time.perf_counter() - t0
+    road_rows = np.repeat(roads, spec.n_masses, axis=0)
+    seat, body = simulate(road_rows, masses.ravel(), spec.dt, QuarterCar(), spec.measurement)
+    del road_rows
+    rel_vel, rel_disp = relative_states(seat, body, spec.dt, spec.measurement)
+    return (seat, body, rel_vel, rel_disp), t_roads, time.perf_counter() - t0
+
+
+def fast(spec, classes, masses, rng_seed, dtype=np.float32):
+    t0 = time.perf_counter()
+    roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, rng=np.random.default_rng(rng_seed))
+    t_roads = time.perf_counter() - t0
+    n = spec.n_roads * spec.n_masses
+    out = tuple(np.empty((n, spec.n_steps), dtype=dtype) for _ in range(4))
+    fused.simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(),
+                              spec.dt, QuarterCar(), spec.measurement, out=out)
+    return out, t_roads, time.perf_counter() - t0
+
+
+def scaling(out_png):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    rows = []
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    for ax, (label, sizes) in zip(axes, [("recordings (6000 steps)", [(r, 100, 6000) for r in (10, 25, 50, 100)]),
+                                         ("steps (10,000 recordings)", [(100, 100, n) for n in (1500, 3000, 6000, 12000)])]):
+        xs, ts = [], []
+        for r, m, n in sizes:
+            spec = DatasetSpec(n_roads=r, n_masses=m, n_steps=n, dt=0.001)
+            classes = ["C"] * r
+            masses = np.full((r, m), 100.0)
+            best = min(fast(spec, classes, masses, 0)[2] for _ in range(3))
+            xs.append(r * m if "recordings" in label else n)
+            ts.append(best)
+            rows.append((r * m, n, best))
+        ax.plot(xs, ts, "o-")
+        ax.plot([0, xs[-1]], [0, ts[-1]], "k:", lw=1, label="linear through the largest")
+        ax.set(xlabel=label, ylabel="generation time [s]", xlim=(0, None), ylim=(0, None))
+        ax.legend()
+    fig.tight_layout()
+    fig.savefig(out_png, dpi=100)
+    for rec, n, t in rows:
+        print(f"  {rec:6d} recordings x {n:5d} steps: {t:.3f} s")
 
 
 def main():
@@ -22,22 +88,52 @@ def main():
     ap.add_argument("--masses", type=int, default=100)
     ap.add_argument("--steps", type=int, default=6000)
     ap.add_argument("--dt", type=float, default=0.001)
+    ap.add_argument("--scaling", action="store_true")
+    ap.add_argument("--peak-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     spec = DatasetSpec(n_roads=args.roads, n_masses=args.masses, n_steps=args.steps, dt=args.dt)
 
-    t0 = time.perf_counter()
-    road_profiles(["C"] * args.roads, args.steps, args.dt, spec.speed, rng=0)
-    t_roads = time.perf_counter() - t0
+    if args.peak_only:  # run in a fresh process: the project's generate_dataset alone
+        import resource
+        from hybrid_sysid.data import generate_dataset
+        t0 = time.perf_counter()
+        ds = generate_dataset(spec)
+        t = time.perf_counter() - t0
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
+        print(f"{t:.3f} {ds.nbytes / 2**30:.3f} {peak:.3f}")
+        return
 
-    t0 = time.perf_counter()
-    ds = generate_dataset(spec)
-    t_total = time.perf_counter() - t0
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB -> GiB on Linux
-    assert np.isfinite(ds.seat_acc).all()
-    print(f"dataset {args.roads} roads x {args.masses} masses x {args.steps} steps = {len(ds)} recordings")
-    print(f"roads (shared sine basis, two matmuls): {t_roads:.3f} s")
-    print(f"whole generation (roads + simulation + re-integration + float32 copy): {t_total:.2f} s")
-    print(f"dataset in memory: {ds.nbytes / 2**30:.3f} GiB; process peak RSS: {peak:.3f} GiB")
+    rng = np.random.default_rng(0)
+    classes = list(rng.choice(list("ABCDE"), size=spec.n_roads))
+    masses = rng.integers(50, 201, size=(spec.n_roads, spec.n_masses)).astype(float)
+    phases = np.random.default_rng(1).uniform(0, 2 * np.pi, size=(spec.n_roads, spec.n_waves))
+
+    fast(DatasetSpec(n_roads=2, n_masses=2, n_steps=10), ["A", "A"], np.full((2, 2), 60.0), 1)  # compile once
+    fast(DatasetSpec(n_roads=2, n_masses=2, n_steps=10), ["A", "A"], np.full((2, 2), 60.0), 1, np.float64)
+    fast_out, fast_roads, fast_total = fast(spec, classes, masses, 1)
+    del fast_out
+    ref_out, ref_roads, ref_total = reference(spec, classes, masses, phases)
+    fast64, _, _ = fast(spec, classes, masses, 1, np.float64)
+    worst = max(np.abs(a - b).max() / np.abs(b).max() for a, b in zip(fast64, ref_out))
+    del ref_out, fast64
+
+    peak = subprocess.run([sys.executable, __file__, "--peak-only", "--roads", str(args.roads), "--masses",
+                           str(args.masses), "--steps", str(args.steps), "--dt", str(args.dt)],
+                          capture_output=True, text=True, check=True).stdout.split()
+    print(f"dataset {spec.n_roads} roads x {spec.n_masses} masses x {spec.n_steps} steps, dt {spec.dt} s")
+    print("| stage | reference (numpy) | project | speed-up |")
+    print("| --- | ---: | ---: | ---: |")
+    print(f"| roads | {ref_roads:.3f} s | {fast_roads:.3f} s | {ref_roads / fast_roads:.0f}x |")
+    print(f"| simulation + re-integration | {ref_total - ref_roads:.3f} s | {fast_total - fast_roads:.3f} s | "
+          f"{(ref_total - ref_roads) / (fast_total - fast_roads):.0f}x |")
+    print(f"| total | {ref_total:.3f} s | {fast_total:.3f} s | {ref_total / fast_total:.0f}x |")
+    print(f"largest relative difference, float64 (all four channels): {worst:.2e}")
+    print(f"generate_dataset in a fresh process: {float(peak[0]):.3f} s (numba kernel loaded from its cache), "
+          f"dataset {float(peak[1]):.3f} GiB, peak RSS {float(peak[2]):.3f} GiB")
+    if args.scaling:
+        png = Path(__file__).parent / "dataset_generation_scaling.png"
+        scaling(png)
+        print(f"scaling plot: {png}")
 
 
 if __name__ == "__main__":
