@@ -82,7 +82,56 @@ def test_interrupted_write_leaves_nothing_loadable(tmp_path, monkeypatch):
     monkeypatch.setattr(dataset_mod.np, "savez", crash)
     with pytest.raises(KeyboardInterrupt):
         get_dataset(SMALL, tmp_path)
-    assert list(tmp_path.iterdir()) == []
+    assert [p for p in tmp_path.iterdir() if p.suffix != ".lock"] == []
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip", "garbage"])
+def test_damaged_cache_is_regenerated_with_a_warning(tmp_path, small, damage):
+    get_dataset(SMALL, tmp_path)
+    (path,) = tmp_path.glob("qcm-*.npz")
+    raw = path.read_bytes()
+    if damage == "truncate":
+        path.write_bytes(raw[: len(raw) // 2])
+    elif damage == "flip":  # one byte inside the seat channel's data: still a valid npz
+        with np.load(path) as f:
+            names = f.files
+        assert "seat_acc" in names
+        i = raw.index(small.seat_acc[3].tobytes()[:64])
+        path.write_bytes(raw[:i] + bytes([raw[i] ^ 0xFF]) + raw[i + 1:])
+    else:
+        path.write_bytes(b"not a cache file")
+    with pytest.warns(RuntimeWarning, match="regenerating"):
+        again = get_dataset(SMALL, tmp_path)
+    np.testing.assert_array_equal(again.seat_acc, small.seat_acc)
+    reloaded = get_dataset(SMALL, tmp_path)  # the regenerated file is whole again
+    np.testing.assert_array_equal(reloaded.seat_acc, small.seat_acc)
+
+
+GENERATE_ONCE = """
+import sys, time
+from hybrid_sysid.data import dataset as d
+real = d.generate_dataset
+def counted(spec):
+    with open(sys.argv[2], "a") as fh:
+        fh.write("generated\\n")
+    time.sleep(1.0)  # hold the lock long enough for the other process to arrive
+    return real(spec)
+d.generate_dataset = counted
+ds = d.get_dataset(d.DatasetSpec(n_roads=3, n_masses=2, n_steps=200, seed=5), sys.argv[1])
+print(float(ds.seat_acc.sum()))
+"""
+
+
+def test_concurrent_jobs_generate_a_dataset_once(tmp_path):
+    import subprocess
+    import sys
+    counter = tmp_path / "count.txt"
+    procs = [subprocess.Popen([sys.executable, "-c", GENERATE_ONCE, str(tmp_path / "cache"), str(counter)],
+                              stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    outs = [p.communicate(timeout=300)[0] for p in procs]
+    assert [p.returncode for p in procs] == [0, 0]
+    assert counter.read_text().splitlines() == ["generated"]
+    assert outs[0] == outs[1]
 
 
 BAD = [
@@ -101,7 +150,7 @@ BAD = [
 def test_bad_values_fail_before_anything_is_written(tmp_path, change, match):
     with pytest.raises(ValueError, match=match):
         get_dataset(DatasetSpec(**{**SMALL.__dict__, **change}), tmp_path)
-    assert list(tmp_path.iterdir()) == []
+    assert list(tmp_path.iterdir()) == []  # not even a lock file
 
 
 @pytest.mark.parametrize("kwargs, match", [

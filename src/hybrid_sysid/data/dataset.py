@@ -11,10 +11,12 @@ import json
 import logging
 import os
 import tempfile
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
+from filelock import FileLock
 
 from hybrid_sysid.physics import fused
 from hybrid_sysid.physics import ROAD_CLASSES, QuarterCar, relative_states, road_profiles, simulate, stable_dt_limit
@@ -152,38 +154,73 @@ def cache_path(spec: DatasetSpec, cache_dir: str | os.PathLike) -> Path:
     return Path(cache_dir).expanduser() / f"qcm-{spec.key()}.npz"
 
 
+_ARRAYS = CHANNELS + ("params", "m3", "road_id", "road_class")
+
+
+def _checksum(arrays: dict) -> str:
+    """sha256 over every stored array's bytes, in a fixed order: a truncated or altered file never matches."""
+    h = hashlib.sha256()
+    for name in _ARRAYS:
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(arrays[name]).tobytes())
+    return h.hexdigest()
+
+
 def save_dataset(ds: QCMDataset, path: Path) -> None:
     """Write atomically: a temporary file in the same folder, then a rename, so a crash leaves nothing loadable."""
     path.parent.mkdir(parents=True, exist_ok=True)
+    arrays = {name: getattr(ds, name) for name in _ARRAYS}
+    arrays["road_class"] = arrays["road_class"].astype("U1")
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, key=np.array(ds.spec.key()), params=ds.params, m3=ds.m3, road_id=ds.road_id,
-                     road_class=ds.road_class.astype("U1"), **{c: getattr(ds, c) for c in CHANNELS})
+            np.savez(fh, key=np.array(ds.spec.key()), checksum=np.array(_checksum(arrays)), **arrays)
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
 
 
+class CacheError(ValueError):
+    """A cache file that cannot be trusted: unreadable, truncated, altered, or another dataset's."""
+
+
 def load_dataset(spec: DatasetSpec, path: Path) -> QCMDataset:
-    with np.load(path, allow_pickle=False) as f:
-        if str(f["key"]) != spec.key():
-            raise ValueError(f"cache file {path} holds another dataset (key {f['key']}, expected {spec.key()})")
-        arrays = {name: f[name] for name in f.files if name != "key"}
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            key, checksum = str(f["key"]), str(f["checksum"])
+            arrays = {name: f[name] for name in _ARRAYS}
+    except Exception as exc:  # zipfile, OSError, KeyError, ValueError: all mean "do not trust this file"
+        raise CacheError(f"cache file {path} is unreadable ({type(exc).__name__}: {exc})") from exc
+    if key != spec.key():
+        raise CacheError(f"cache file {path} holds another dataset (key {key}, expected {spec.key()})")
+    if _checksum(arrays) != checksum:
+        raise CacheError(f"cache file {path} fails its checksum (altered or corrupted)")
     return QCMDataset(spec=spec, **arrays)
 
 
 def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -> QCMDataset:
-    """Load the dataset from the cache if present, otherwise simulate it and (with a cache_dir) store it."""
+    """Load the dataset from the cache if present and intact, otherwise simulate it and store it.
+
+    A file lock makes concurrent jobs (a sweep) generate a dataset once: the others wait, then load it.
+    A cache file that fails its checks is regenerated, with a warning, never loaded.
+    """
     spec.validate()
     if cache_dir is None:
         return generate_dataset(spec)
     path = cache_path(spec, cache_dir)
-    if path.exists():
-        log.info("loading cached dataset %s", path)
-        return load_dataset(spec, path)
-    log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps, path)
-    ds = generate_dataset(spec)
-    save_dataset(ds, path)
-    return ds
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with FileLock(str(path) + ".lock"):
+        if path.exists():
+            try:
+                ds = load_dataset(spec, path)
+                log.info("loaded cached dataset %s", path)
+                return ds
+            except CacheError as exc:
+                warnings.warn(f"{exc}; regenerating it", RuntimeWarning, stacklevel=2)
+                log.warning("%s; regenerating it", exc)
+        log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps,
+                 path)
+        ds = generate_dataset(spec)
+        save_dataset(ds, path)
+        return ds
