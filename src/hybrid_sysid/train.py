@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 import time
@@ -29,6 +30,8 @@ from hybrid_sysid.physics import QuarterCar
 
 log = logging.getLogger("hybrid_sysid")
 CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
+# hydra.run.dir is `resume` when given, else a new time-stamped directory
+OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
 
 
 def build_datamodule(cfg: DictConfig) -> QCMDataModule:
@@ -82,9 +85,29 @@ def console_table(results: list[dict]) -> str:
     return (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
 
 
+def previous_record(run_dir: Path, overrides) -> dict | None:
+    """The record of a run that already completed in this directory (a re-run sweep skips it), else None."""
+    path = run_dir / RECORD
+    if not path.exists():
+        return None
+    record = json.loads(path.read_text())
+    if record.get("status") != "completed":
+        return None
+    wanted = [o for o in overrides if not o.startswith("resume=")]
+    had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
+    if sorted(had) != sorted(wanted):
+        raise ValueError(f"run directory {run_dir} holds a completed run of other overrides ({' '.join(had)}); "
+                         "choose another hydra.run.dir / hydra.sweep.dir")
+    return record
+
+
 def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/."""
     run_dir = Path(run_dir)
+    done = previous_record(run_dir, overrides)
+    if done is not None:
+        log.info("run %s already completed; not training it again", run_dir)
+        return done
     run_dir.mkdir(parents=True, exist_ok=True)
     t = cfg.trainer
     if t.get("threads"):
@@ -105,10 +128,13 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
         callbacks=[ckpt], enable_progress_bar=t.progress_bar, enable_model_summary=False,
         num_sanity_val_steps=0, default_root_dir=str(run_dir), **t.get("extra", {}))
     dm.setup("fit")
+    last = run_dir / "checkpoints" / "last.ckpt"
+    if last.exists():
+        log.info("resuming from %s", last)
     start = time.perf_counter()
-    trainer.fit(model, datamodule=dm)
+    trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last.exists() else None)
     fit_seconds = time.perf_counter() - start
-    train_seconds = fit_seconds - model._eval_seconds  # periodic evaluations excluded
+    train_seconds = model.trained_seconds  # periodic evaluations excluded, resumed sessions included
 
     if ckpt.best_model_path:
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]

@@ -98,31 +98,36 @@ class RandomWindows(IterableDataset):
 
     def __init__(self, data: QCMData, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0):
         self.data, self.rows, self.batch_size = data, rows, batch_size
-        self.seed, self.noise_std, self.start_pass = seed, noise_std, 0
+        self.seed, self.noise_std, self.start_batch = seed, noise_std, 0
 
     @property
     def batches_per_pass(self) -> int:
         return -(-len(self.rows) // self.batch_size)
 
-    def passes(self, start: int = 0) -> Iterator[dict[str, torch.Tensor]]:
-        e = start
-        while True:
-            yield from self.one_pass(e)
-            e += 1
+    def resume_at(self, batch: int) -> None:
+        """Start the next iteration at this batch number, as if the batches before it had been drawn."""
+        self.start_batch = int(batch)
 
-    def one_pass(self, e: int) -> Iterator[dict[str, torch.Tensor]]:
+    def passes(self, start_batch: int = 0) -> Iterator[dict[str, torch.Tensor]]:
+        e, skip = divmod(start_batch, self.batches_per_pass)
+        while True:
+            yield from self.one_pass(e, skip)
+            e, skip = e + 1, 0
+
+    def one_pass(self, e: int, skip: int = 0) -> Iterator[dict[str, torch.Tensor]]:
         rng = np.random.default_rng([self.seed, 1000 + e])
         order = rng.permutation(self.rows)
         starts = rng.integers(0, self.data.n_steps - self.data.window + 1, size=len(order))
-        for i in range(0, len(order), self.batch_size):
-            rows, st = order[i:i + self.batch_size], starts[i:i + self.batch_size]
+        for b in range(skip, self.batches_per_pass):
+            sl = slice(b * self.batch_size, (b + 1) * self.batch_size)
             noise = None
-            if self.noise_std > 0:
-                noise = self.noise_std * rng.standard_normal((len(rows), 2, self.data.window))
-            yield self.data.batch(rows, st, noise)
+            if self.noise_std > 0:  # one generator per batch, so a resumed stream draws the same noise
+                noise_rng = np.random.default_rng([self.seed, 2000 + e, b])
+                noise = self.noise_std * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
+            yield self.data.batch(order[sl], starts[sl], noise)
 
     def __iter__(self) -> Iterator[dict[str, torch.Tensor]]:
-        return self.passes(self.start_pass)
+        return self.passes(self.start_batch)
 
 
 class QCMDataModule(L.LightningDataModule):

@@ -47,12 +47,31 @@ class ParameterEstimator(L.LightningModule):
         self._val_true: list[torch.Tensor] = []
         self._val_loss: list[torch.Tensor] = []
 
+    @property
+    def trained_seconds(self) -> float:
+        """Training wall time so far, this session and any resumed one, evaluations excluded."""
+        return 0.0 if self._t0 is None else time.perf_counter() - self._t0 - self._eval_seconds
+
+    def on_save_checkpoint(self, checkpoint):
+        checkpoint["hybrid_sysid"] = {"curve_rows": self.curve_rows, "train_seconds": self.trained_seconds}
+
+    def on_load_checkpoint(self, checkpoint):
+        state = checkpoint.get("hybrid_sysid", {})
+        self.curve_rows = list(state.get("curve_rows", []))
+        # continue the training clock from the saved total
+        self._resumed_seconds = state.get("train_seconds", 0.0)
+        # and the window stream where the checkpoint left it, not at its beginning (this hook runs before
+        # Lightning starts iterating the training data; one batch per step)
+        dm = getattr(self.trainer, "datamodule", None) if self._trainer is not None else None
+        if dm is not None and hasattr(dm, "train_windows"):
+            dm.train_windows.resume_at(checkpoint["global_step"])
+
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         return self.net(signals)
 
     def training_step(self, batch, batch_idx):
         if self._t0 is None:
-            self._t0 = time.perf_counter()
+            self._t0 = time.perf_counter() - getattr(self, "_resumed_seconds", 0.0)
         loss = self.objective(self(batch["signals"]), batch)
         if not torch.isfinite(loss):
             raise FloatingPointError(f"training loss is {loss.item()} at step {self.global_step}; "
@@ -63,9 +82,6 @@ class ParameterEstimator(L.LightningModule):
     def on_validation_start(self):
         self._eval_t0 = time.perf_counter()
 
-    def on_validation_end(self):
-        self._eval_seconds += time.perf_counter() - self._eval_t0
-
     def validation_step(self, batch, batch_idx):
         pred = self(batch["signals"])
         self._val_loss.append(self.objective(pred, batch).detach() * len(pred))
@@ -73,6 +89,12 @@ class ParameterEstimator(L.LightningModule):
         self._val_true.append(batch["params"])
 
     def on_validation_epoch_end(self):
+        self._record_validation()
+        # every second of evaluation (curves included) is kept out of the training clock; the checkpoint
+        # saved right after this hook stores that clock
+        self._eval_seconds += time.perf_counter() - self._eval_t0
+
+    def _record_validation(self):
         pred, true = torch.cat(self._val_pred), torch.cat(self._val_true)
         loss = torch.stack(self._val_loss).sum() / len(pred)
         self._val_pred, self._val_true, self._val_loss = [], [], []
@@ -83,9 +105,7 @@ class ParameterEstimator(L.LightningModule):
         self.log("val/p2_rel_dev", float(dev[:, 1].mean()))
         if self.trainer.sanity_checking or not self.hparams.curve_sets:
             return
-        # training seconds so far: wall time since the first step minus earlier evaluations and this one
-        now = time.perf_counter()
-        elapsed = 0.0 if self._t0 is None else now - self._t0 - self._eval_seconds - (now - self._eval_t0)
+        elapsed = self.trained_seconds - (time.perf_counter() - self._eval_t0)
         dm = self.trainer.datamodule
         for split, std in self.hparams.curve_sets:
             limit = self.hparams.curve_train_limit if split == "train" else None
