@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import sys
 import time
 from pathlib import Path
@@ -21,6 +22,8 @@ from hydra.types import RunMode
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid import config as schema
+from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.data import DatasetSpec, QCMDataModule
 from hybrid_sysid.evaluation import plots
 from hybrid_sysid.evaluation.metrics import summarise
@@ -32,15 +35,20 @@ log = logging.getLogger("hybrid_sysid")
 CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
 # hydra.run.dir is `resume` when given, else a new time-stamped directory
 OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
+schema.register()
+
+
+def dataset_spec(cfg: DictConfig) -> DatasetSpec:
+    d = cfg.data
+    return DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
+                       n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
+                       m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
+                       car=QuarterCar(**cfg.get("car", {})))
 
 
 def build_datamodule(cfg: DictConfig) -> QCMDataModule:
     d = cfg.data
-    spec = DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
-                       n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
-                       m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
-                       car=QuarterCar(**cfg.get("car", {})))
-    return QCMDataModule(spec, cache_dir=d.cache_dir, window=d.window, batch_size=cfg.model.batch_size,
+    return QCMDataModule(dataset_spec(cfg), cache_dir=d.cache_dir, window=d.window, batch_size=cfg.model.batch_size,
                          train_fraction=d.train_fraction, val_fraction=d.val_fraction,
                          eval_std=list(cfg.noise.eval_std), train_std=cfg.noise.train_std, seed=cfg.seed)
 
@@ -103,6 +111,7 @@ def previous_record(run_dir: Path, overrides) -> dict | None:
 
 def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/."""
+    validate(cfg)  # every range check before any work
     run_dir = Path(run_dir)
     done = previous_record(run_dir, overrides)
     if done is not None:
@@ -160,22 +169,42 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     return record
 
 
+_task_started = False
+
+
 @hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
-def main(cfg: DictConfig) -> dict:
+def hydra_main(cfg: DictConfig) -> dict:
+    global _task_started
+    _task_started = True
     hc = HydraConfig.get()
     run_dir = Path(hc.runtime.output_dir)
     overrides = list(hc.overrides.task)
+    multirun = hc.mode == RunMode.MULTIRUN
     try:
         return train(cfg, run_dir, overrides)
     except Exception as exc:  # record the failure where the sweep summary will look for it
         error = f"{type(exc).__name__}: {exc}"
         run_dir.mkdir(parents=True, exist_ok=True)
         write_json_atomic(run_dir / RECORD, run_record("failed", overrides, cfg.get("seed", 0), error=error))
-        if hc.mode == RunMode.MULTIRUN:  # let the other jobs run; the sweep summary exits non-zero
+        if multirun:  # let the other jobs run; the sweep summary exits non-zero
             log.error("job failed: %s", error)
             return {"status": "failed", "error": error}
+        if isinstance(exc, ConfigError) and os.environ.get("HYDRA_FULL_ERROR") != "1":
+            print(f"error: {exc}", file=sys.stderr)
+            sys.exit(2)  # a bad value: one line, no traceback
+        raise
+
+
+def main() -> None:
+    """Console script: Hydra's app, with exit status 2 for a config that does not compose (unknown key,
+    wrong type, unknown group option): Hydra itself exits 1 for those, like for any failure."""
+    try:
+        hydra_main()
+    except SystemExit as exc:
+        if exc.code == 1 and not _task_started:
+            sys.exit(2)
         raise
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    main()

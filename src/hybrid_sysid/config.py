@@ -1,0 +1,146 @@
+"""Structured-config schemas (Hydra's ConfigStore) and range checks with clear messages.
+
+The schemas make an unknown key or a wrong type fail when Hydra composes the config. The range checks in
+``validate`` run right after, before any data is simulated or any directory filled, and raise ConfigError
+naming the key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig
+
+
+class ConfigError(ValueError):
+    """A config value outside what is allowed; the message names the key, the value and the allowed range."""
+
+
+@dataclass
+class DataConfig:
+    n_roads: int = MISSING
+    n_masses: int = MISSING
+    n_steps: int = MISSING
+    dt: float = MISSING
+    speed: float = MISSING
+    n_waves: int = 300
+    amplitude: str = "paper"
+    m3_min: int = 50
+    m3_max: int = 200
+    measurement: str = "consistent"
+    window: int = 500
+    train_fraction: float = 0.8
+    val_fraction: float = 0.125
+    seed: int = 0
+    cache_dir: str = "outputs/.cache"
+
+
+@dataclass
+class RoadConfig:
+    classes: List[str] = field(default_factory=lambda: list("ABCDE"))
+
+
+@dataclass
+class NoiseConfig:
+    eval_std: List[float] = field(default_factory=lambda: [0.0, 0.01])
+    train_std: float = 0.0
+
+
+@dataclass
+class OptimConfig:
+    name: str = "adamw"
+    lr: float = 3e-3
+    weight_decay: float = 0.0
+    schedule: str = "onecycle"
+    warmup_fraction: float = 0.3
+
+
+@dataclass
+class ModelConfig:
+    net: Dict[str, Any] = MISSING  # _target_ and the network's own arguments
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    batch_size: int = 64
+
+
+@dataclass
+class TrainerConfig:
+    max_steps: int = 1500
+    eval_every_n_steps: int = 100
+    accelerator: str = "cpu"
+    devices: Any = 1
+    threads: Optional[int] = None
+    deterministic: bool = True
+    monitor: str = "auto"
+    progress_bar: bool = True
+    extra: Dict[str, Any] = field(default_factory=dict)  # passed to lightning.Trainer as is
+
+
+@dataclass
+class Config:
+    seed: int = 0
+    resume: Optional[str] = None
+    data: DataConfig = MISSING
+    road: RoadConfig = MISSING
+    noise: NoiseConfig = MISSING
+    model: ModelConfig = MISSING
+    objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
+    trainer: TrainerConfig = MISSING
+    car: Dict[str, float] = field(default_factory=dict)  # QuarterCar overrides, e.g. car.c3=600
+
+
+def register() -> None:
+    ConfigStore.instance().store(name="schema", node=Config)
+
+
+def _bad(key: str, value, allowed: str):
+    raise ConfigError(f"{key} = {value!r} is not allowed: {allowed}")
+
+
+def validate(cfg: DictConfig) -> None:
+    """Every range check, before any work. Checks that need the physics (stability) use its own functions."""
+    from hybrid_sysid.data.datamodule import split_by_road
+    from hybrid_sysid.train import dataset_spec
+
+    d, t, o = cfg.data, cfg.trainer, cfg.model.optim
+    try:
+        dataset_spec(cfg).validate()
+        split_by_road(d.n_roads, d.n_masses, d.train_fraction, d.val_fraction)
+    except ConfigError:
+        raise
+    except ValueError as exc:  # the data layer's own messages already name the key
+        raise ConfigError(str(exc)) from exc
+    min_window = 59 if "PaperCNN" in str(cfg.model.net.get("_target_", "")) else 16
+    if not min_window <= d.window <= d.n_steps:
+        _bad("data.window", d.window, f"must lie in [{min_window}, data.n_steps = {d.n_steps}] "
+             f"({min_window} = the shortest window the network's kernels fit)")
+    for s in cfg.noise.eval_std:
+        if not s >= 0:
+            _bad("noise.eval_std", list(cfg.noise.eval_std), "every standard deviation must be >= 0")
+    if not cfg.noise.eval_std:
+        _bad("noise.eval_std", [], "give at least one level, e.g. [0.0]")
+    if not cfg.noise.train_std >= 0:
+        _bad("noise.train_std", cfg.noise.train_std, "must be >= 0")
+    if cfg.model.batch_size < 1:
+        _bad("model.batch_size", cfg.model.batch_size, "must be >= 1")
+    if not o.lr > 0:
+        _bad("model.optim.lr", o.lr, "must be > 0")
+    if not o.weight_decay >= 0:
+        _bad("model.optim.weight_decay", o.weight_decay, "must be >= 0")
+    if not 0 < o.warmup_fraction < 1:
+        _bad("model.optim.warmup_fraction", o.warmup_fraction, "must lie in (0, 1)")
+    if t.max_steps < 1:
+        _bad("trainer.max_steps", t.max_steps, "must be >= 1")
+    if t.eval_every_n_steps < 1:
+        _bad("trainer.eval_every_n_steps", t.eval_every_n_steps, "must be >= 1")
+    if t.threads is not None and t.threads < 1:
+        _bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
+    if t.monitor not in ("auto", "val/loss", "val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev"):
+        _bad("trainer.monitor", t.monitor, "one of auto, val/loss, val/rel_dev, val/p1_rel_dev, val/p2_rel_dev")
+    obj = cfg.objective
+    if "labelled_weight" in obj or "hybrid_weight" in obj:
+        lw, hw = obj.get("labelled_weight", 0.0), obj.get("hybrid_weight", 0.0)
+        if lw < 0 or hw < 0 or lw + hw == 0:
+            _bad("objective.labelled_weight / objective.hybrid_weight", [lw, hw],
+                 "both must be >= 0 and not both zero")
