@@ -58,3 +58,19 @@ def test_same_seed_same_numbers_other_seed_other_numbers(make_cfg, tmp_path, tin
     assert again["results"] == record["results"]
     other = train(make_cfg(*TINY, "seed=1"), tmp_path / "other")
     assert other["results"] != record["results"]
+
+
+def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):
+    import os
+    import subprocess
+    import sys
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
+    proc = subprocess.run([sys.executable, "-m", "hybrid_sysid", *TINY, "model.optim.lr=1e30",
+                           "trainer.progress_bar=false", f"hydra.run.dir={tmp_path / 'run'}"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert proc.returncode != 0
+    record = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert record["status"] == "failed"
+    assert record["error"].startswith("FloatingPointError: training loss is nan at step")
+    step = int(record["error"].split("at step ")[1].split(";")[0])
+    assert step < 20  # stopped at once, not at max_steps
