@@ -110,3 +110,26 @@ def test_sweeps_started_together_get_their_own_directories(tmp_path):
     sweeps = list((tmp_path / "outputs" / "multirun").iterdir())
     assert len(sweeps) == 2
     assert all((s / "summary.csv").exists() and (s / "0" / "metrics.json").exists() for s in sweeps)
+
+
+def test_an_interrupted_sweep_completes_without_redoing_finished_jobs(tmp_path):
+    import signal
+    import time
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
+    args = [sys.executable, "-m", "hybrid_sysid", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}"]
+    proc = subprocess.Popen(args, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    first = tmp_path / "sw" / "0" / "metrics.json"
+    deadline = time.time() + 300
+    while not first.exists() and time.time() < deadline:
+        time.sleep(0.05)
+    proc.send_signal(signal.SIGKILL)
+    proc.wait()
+    assert not (tmp_path / "sw" / "summary.csv").exists()
+    before = first.read_bytes()
+
+    again = subprocess.run(args, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr[-2000:]
+    assert "already completed" in again.stdout + again.stderr
+    assert first.read_bytes() == before  # job 0 was not trained again
+    summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
+    assert set(summary.status) == {"completed"} and summary.run.nunique() == 2
