@@ -75,9 +75,13 @@ class FastCNN(nn.Module):
     [P_MIN, P_MAX] widened by ``margin`` (as a fraction of the log range) on each side so the true extremes are
     not at the sigmoid's flat ends. A bounded head starts every prediction inside the prior, which keeps the
     hybrid objective sane from step 0; log scaling matches p ~ 1/m3 and the relative-deviation metric.
+
+    Defaults (32 channels, kernel 9) were tuned for accuracy per CPU second on 40 roads x 50 masses, dt = 5 ms:
+    64 channels cost ~2x per step for no gain at equal steps; kernel 9 was a little better than 5 or 7 at equal
+    cost. BatchNorm, ReLU, max and mean pooling are deterministic on CPU.
     """
 
-    def __init__(self, in_channels: int = 2, channels: int = 64, n_layers: int = 4, kernel_size: int = 7,
+    def __init__(self, in_channels: int = 2, channels: int = 32, n_layers: int = 4, kernel_size: int = 9,
                  p_min: Sequence[float] = P_MIN, p_max: Sequence[float] = P_MAX, margin: float = 0.1,
                  diff_channel: bool = True):
         super().__init__()

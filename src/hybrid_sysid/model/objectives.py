@@ -48,6 +48,8 @@ class HybridObjective(nn.Module):
     orders of magnitude and the network would learn only from rough roads. ``eps`` guards all-zero windows.
     """
 
+    uses_labels = False  # model selection then stays label-free too (trainer.monitor=auto picks val/loss)
+
     def __init__(self, normalize: bool = True, eps: float = 1e-12):
         super().__init__()
         if not (math.isfinite(eps) and eps >= 0):

@@ -1,0 +1,100 @@
+import math
+
+import pytest
+import torch
+from torch import nn
+
+from hybrid_sysid.model import P_MAX, P_MIN, FastCNN, PaperCNN
+
+
+def test_paper_cnn_layers_match_the_paper():
+    # sec. 2.4: conv 100 x k50 on 2 channels, conv 100 x k10, flatten, dense 100, 10, 2 ('valid' convolutions)
+    window = 500
+    length = window - 50 + 1 - 10 + 1
+    expected = [
+        (100, 2, 50), (100,),
+        (100, 100, 10), (100,),
+        (100, 100 * length), (100,),
+        (10, 100), (10,),
+        (2, 10), (2,),
+    ]
+    model = PaperCNN(window=window)
+    assert [tuple(p.shape) for p in model.parameters()] == expected
+    n_hand = (2 * 50 + 1) * 100 + (100 * 10 + 1) * 100 + (100 * 442 + 1) * 100 + (100 + 1) * 10 + (10 + 1) * 2
+    assert sum(p.numel() for p in model.parameters()) == n_hand == 4_531_332
+
+
+def test_paper_cnn_output_is_positive_and_scaled():
+    torch.manual_seed(0)
+    model = PaperCNN(window=200)
+    out = model(torch.randn(5, 2, 200))
+    assert out.shape == (5, 2) and (out >= 0).all()
+    last = model.net[-1]
+    with torch.no_grad():  # a constant last layer shows the abs and the label scale: |(-1, 2)| * (7.7, 1237)
+        last.weight.zero_()
+        last.bias.copy_(torch.tensor([-1.0, 2.0]))
+    assert torch.allclose(model(torch.randn(3, 2, 200)), torch.tensor([[7.7, 2474.0]] * 3))
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"window": 40}, "window = 40"),
+    ({"p_scale": (1.0, -2.0)}, "p_scale"),
+    ({"activation": "gelu"}, "activation = 'gelu'.*tanh"),
+])
+def test_paper_cnn_rejects_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        PaperCNN(**kwargs)
+
+
+def test_fast_cnn_output_stays_inside_the_widened_prior():
+    torch.manual_seed(0)
+    model = FastCNN(channels=16, n_layers=3, margin=0.1)
+    out = model(1e3 * torch.randn(7, 2, 500))
+    assert out.shape == (7, 2)
+    for j in range(2):
+        widen = (P_MAX[j] / P_MIN[j]) ** 0.1  # margin is a fraction of the log range, on each side
+        lo, hi = P_MIN[j] / widen, P_MAX[j] * widen
+        assert ((out[:, j] > lo) & (out[:, j] < hi)).all()
+        with torch.no_grad():  # a saturated head gives the bound itself
+            model.head.weight.zero_()
+            model.head.bias.fill_(50.0)
+        assert torch.allclose(model(torch.randn(2, 2, 500))[:, j], torch.tensor(hi), rtol=1e-5)
+
+
+def test_fast_cnn_is_blind_to_the_overall_amplitude():
+    # the per-window body-RMS scale: a class E road is a scaled class A road as far as p is concerned
+    torch.manual_seed(0)
+    model = FastCNN(channels=8, n_layers=2).eval()
+    x = torch.randn(4, 2, 300)
+    assert torch.allclose(model(x), model(16.0 * x), rtol=1e-5)
+
+
+def test_fast_cnn_layers():
+    model = FastCNN(channels=32, n_layers=4, kernel_size=5)
+    convs = [m for m in model.modules() if isinstance(m, nn.Conv1d)]
+    assert [tuple(c.weight.shape) for c in convs] == [(32, 3, 5)] + [(32, 32, 5)] * 3
+    assert model.head.in_features == 32 and model.head.out_features == 2
+    assert sum(isinstance(m, nn.MaxPool1d) for m in model.modules()) == 4
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"channels": 0}, "channels = 0"),
+    ({"n_layers": 1.5}, "n_layers = 1.5"),
+    ({"kernel_size": 4}, "kernel_size = 4.*odd"),
+    ({"margin": -0.1}, r"margin = -0.1.*\[0, 1\]"),
+    ({"p_min": (20.0, 495.0)}, "p_min"),
+    ({"in_channels": 3}, "in_channels = 3"),
+])
+def test_fast_cnn_rejects_bad_arguments(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        FastCNN(**kwargs)
+
+
+def test_models_are_reproducible_from_the_seed():
+    x = torch.randn(3, 2, 500)
+    outs = []
+    for _ in range(2):
+        torch.manual_seed(3)
+        outs.append((FastCNN(channels=8)(x), PaperCNN()(x)))
+    assert all(torch.equal(a, b) for a, b in zip(*outs))
+    assert math.isfinite(outs[0][1].sum().item())
