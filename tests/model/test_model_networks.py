@@ -84,6 +84,7 @@ def test_fast_cnn_layers():
     ({"margin": -0.1}, r"margin = -0.1.*\[0, 1\]"),
     ({"p_min": (20.0, 495.0)}, "p_min"),
     ({"in_channels": 3}, "in_channels = 3"),
+    ({"bn_momentum": 0.0}, r"bn_momentum = 0.0.*\(0, 1\]"),
 ])
 def test_fast_cnn_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
@@ -98,3 +99,15 @@ def test_models_are_reproducible_from_the_seed():
         outs.append((FastCNN(channels=8)(x), PaperCNN()(x)))
     assert all(torch.equal(a, b) for a, b in zip(*outs))
     assert math.isfinite(outs[0][1].sum().item())
+
+
+@pytest.mark.parametrize("make", [lambda: FastCNN(channels=8), lambda: PaperCNN(window=120)], ids=["fast", "paper"])
+def test_models_run_under_deterministic_algorithms(make):
+    was = torch.are_deterministic_algorithms_enabled()
+    torch.use_deterministic_algorithms(True)  # raises on any op without a deterministic implementation
+    try:
+        torch.manual_seed(0)
+        model = make()
+        model(torch.randn(4, 2, 120)).sum().backward()
+    finally:
+        torch.use_deterministic_algorithms(was)

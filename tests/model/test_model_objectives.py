@@ -41,7 +41,8 @@ def test_hybrid_matches_a_hand_written_reference():
     t = lambda a: torch.tensor(a, dtype=torch.float64)  # noqa: E731
     batch = {"signals": t(np.stack([z, -z], axis=1)), "rel_vel": t(rv), "rel_disp": t(rd)}
     assert HybridObjective(normalize=False)(t(pred), batch).item() == pytest.approx(ref_plain, rel=1e-12)
-    assert HybridObjective(normalize=True)(t(pred), batch).item() == pytest.approx(ref_norm, rel=1e-9)  # eps = 1e-12 in the denominator
+    # rel 1e-9, not 1e-12: the default eps = 1e-12 sits in the denominator
+    assert HybridObjective(normalize=True)(t(pred), batch).item() == pytest.approx(ref_norm, rel=1e-9)
 
 
 def test_hybrid_normalisation_weighs_rough_and_smooth_roads_alike(consistent_batch):

@@ -1,4 +1,4 @@
-"""FastCNN must be able to memorise a tiny training set under either objective (a wiring check, not a benchmark)."""
+"""FastCNN must memorise a tiny training set under either objective (a wiring check, not a benchmark)."""
 
 import pytest
 import torch
@@ -17,13 +17,13 @@ def mean_rel_dev(model, batch):
     with torch.no_grad():
         pred = model(batch["signals"])
     model.train()
-    return ((pred - batch["params"]).abs() / batch["params"]).mean().item()
+    return ((pred - batch["params"]).abs() / batch["params"]).mean(dim=0)  # per parameter
 
 
 @pytest.mark.parametrize("objective", [LabelledObjective(), HybridObjective()], ids=["labelled", "hybrid"])
 def test_fast_cnn_overfits_a_tiny_set(tiny_set, objective):
     torch.manual_seed(0)
-    model = FastCNN(channels=16, n_layers=3)
+    model = FastCNN(channels=16, n_layers=3, bn_momentum=0.1)  # 300 steps: running stats must catch up
     opt = torch.optim.Adam(model.parameters(), lr=3e-3)
     # a constant prediction at the prior's centre misses by ~30%: the bar below needs real learning
     baseline = ((tiny_set["params"] - tiny_set["params"].mean(0)).abs() / tiny_set["params"]).mean().item()
@@ -33,5 +33,5 @@ def test_fast_cnn_overfits_a_tiny_set(tiny_set, objective):
         opt.zero_grad()
         loss.backward()
         opt.step()
-    # measured ~1-2% after 300 steps (seed 0); 5% leaves room for other BLAS builds without losing meaning
-    assert mean_rel_dev(model, tiny_set) < 0.05
+    # measured 0.04-2.0% per parameter after 300 steps over seeds 0-3; 5% leaves room without losing meaning
+    assert (mean_rel_dev(model, tiny_set) < 0.05).all()

@@ -78,12 +78,14 @@ class FastCNN(nn.Module):
 
     Defaults (32 channels, kernel 9) were tuned for accuracy per CPU second on 40 roads x 50 masses, dt = 5 ms:
     64 channels cost ~2x per step for no gain at equal steps; kernel 9 was a little better than 5 or 7 at equal
-    cost. BatchNorm, ReLU, max and mean pooling are deterministic on CPU.
+    cost. BatchNorm, ReLU, max and mean pooling are deterministic on CPU. ``bn_momentum`` 0.01 (torch's default
+    is 0.1) averages the running statistics over ~100 batches: with 0.1 the eval-mode test error after the same
+    training swung between 1.0% and 1.7% with the last few batches; 0.01 matched exact re-estimated statistics.
     """
 
     def __init__(self, in_channels: int = 2, channels: int = 32, n_layers: int = 4, kernel_size: int = 9,
                  p_min: Sequence[float] = P_MIN, p_max: Sequence[float] = P_MAX, margin: float = 0.1,
-                 diff_channel: bool = True):
+                 diff_channel: bool = True, bn_momentum: float = 0.01):
         super().__init__()
         in_channels = _check_int("in_channels", in_channels, 1)
         channels = _check_int("channels", channels, 1)
@@ -93,6 +95,8 @@ class FastCNN(nn.Module):
             raise ValueError(f"kernel_size = {kernel_size} is invalid; it must be odd (for 'same' padding)")
         if not (math.isfinite(margin) and 0 <= margin <= 1):
             raise ValueError(f"margin = {margin} is invalid; it must be in [0, 1]")
+        if not (math.isfinite(bn_momentum) and 0 < bn_momentum <= 1):
+            raise ValueError(f"bn_momentum = {bn_momentum} is invalid; it must be in (0, 1]")
         if diff_channel and in_channels != 2:
             raise ValueError(f"in_channels = {in_channels} is invalid with diff_channel=True; it must be 2")
         lo, hi = _check_pair("p_min", p_min), _check_pair("p_max", p_max)
@@ -107,7 +111,7 @@ class FastCNN(nn.Module):
         layers, c_in = [], in_channels + int(self.diff_channel)
         for _ in range(n_layers):
             layers += [nn.Conv1d(c_in, channels, kernel_size, padding=kernel_size // 2, bias=False),
-                       nn.BatchNorm1d(channels), nn.ReLU(), nn.MaxPool1d(2)]
+                       nn.BatchNorm1d(channels, momentum=bn_momentum), nn.ReLU(), nn.MaxPool1d(2)]
             c_in = channels
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(channels, 2)
