@@ -90,6 +90,7 @@ def test_joblib_launcher_runs_jobs_in_parallel_processes(tmp_path):
     assert "JoblibLauncher" in (tmp_path / "sw" / "multirun.yaml").read_text()
 
 
+@pytest.mark.slow
 def test_slurm_path_through_submitits_local_executor(tmp_path):
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
     proc = run_app(tmp_path, "-m", "launcher=submitit_local", "seed=0,1", *TINY, "trainer.max_steps=4",
@@ -100,6 +101,7 @@ def test_slurm_path_through_submitits_local_executor(tmp_path):
     assert (tmp_path / "sw" / ".submitit").is_dir()
 
 
+@pytest.mark.slow
 def test_sweeps_started_together_get_their_own_directories(tmp_path):
     env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
     args = [sys.executable, "-m", "hybrid_sysid", "-m", "seed=0", *TINY, "trainer.max_steps=2",
