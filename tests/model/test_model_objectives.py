@@ -93,6 +93,14 @@ def test_combined_is_the_weighted_sum(consistent_batch):
     assert only_lab.item() == pytest.approx(lab.item(), rel=1e-6)
 
 
+def test_label_use_is_declared_for_model_selection():
+    # train.py picks the checkpoint metric from this flag; a label-free objective must not select on labels
+    assert not HybridObjective().uses_labels
+    assert not CombinedObjective(labelled_weight=0.0, hybrid_weight=1.0).uses_labels
+    assert getattr(LabelledObjective(), "uses_labels", True)
+    assert CombinedObjective(labelled_weight=0.5, hybrid_weight=1.0).uses_labels
+
+
 @pytest.mark.parametrize("kwargs, match", [
     ({"labelled_weight": 0.0, "hybrid_weight": 0.0}, "labelled_weight and hybrid_weight must not both be zero"),
     ({"labelled_weight": -1.0}, "labelled_weight = -1.0.*>= 0"),

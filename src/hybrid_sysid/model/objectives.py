@@ -82,6 +82,8 @@ class CombinedObjective(nn.Module):
         self.labelled_weight, self.hybrid_weight = float(labelled_weight), float(hybrid_weight)
         self.labelled = LabelledObjective(p_scale=p_scale, norm=norm)
         self.hybrid = HybridObjective(normalize=normalize, eps=eps)
+        # with labelled_weight 0 the combination is label-free, and model selection must stay so too
+        self.uses_labels = self.labelled_weight > 0
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         # a zero weight skips its term, so a hybrid-only combination still never reads the labels
