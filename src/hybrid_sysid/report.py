@@ -24,6 +24,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--metric", default="mean_rel_dev", choices=list(METRICS), help="default: mean_rel_dev")
     p.add_argument("--out", type=Path, default=None,
                    help="output directory (default: the PATH if one is given, else ./report)")
+    p.add_argument("--compare", default=None, metavar="KEY",
+                   help="the swept key whose rows the marks compare (default: objective when swept)")
+    p.add_argument("--latex", action="store_true", help="also write summary.tex (a booktabs table)")
     return p.parse_args(argv)
 
 
@@ -37,11 +40,17 @@ def main(argv=None) -> int:
             print(f"{PROG}: error: no runs ({RECORD}) under {path}", file=sys.stderr)
             return 2
     out = args.out or (args.paths[0] if len(args.paths) == 1 else Path("report"))
-    df, table = write_summary(out, paths=args.paths, split=args.split, metric=args.metric)
-    print(to_markdown(table), end="")
+    try:
+        df, table = write_summary(out, paths=args.paths, split=args.split, metric=args.metric, latex=args.latex,
+                                  compare=args.compare)
+    except ValueError as exc:  # e.g. --compare naming a key that is not swept
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    print(to_markdown(table, compare=args.compare), end="")
     runs = df.drop_duplicates("run")
     bad = int((runs.status != "completed").sum())
-    print(f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/summary.csv, summary.md, figures/",
+    tex = ", summary.tex" if args.latex else ""
+    print(f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/summary.csv, summary.md{tex}, figures/",
           file=sys.stderr)
     return 1 if bad else 0
 

@@ -31,20 +31,44 @@ def _curves(run_dir: Path, rng) -> None:
     (run_dir / "curves.csv").write_text("\n".join(lines) + "\n")
 
 
+def known_results(values: dict, n: int = 40, std_rel_dev: float = 0.05) -> list[dict]:
+    """Results rows with chosen numbers: values maps (split, noise_std, parameter) or (split, noise_std, windows,
+    parameter) to mean_rel_dev; a 3-tuple key writes no "windows" field (as records before that field)."""
+    rows = []
+    for key, v in values.items():
+        split, std, *k, p = key
+        rows.append({"split": split, "noise_std": std, **({"windows": k[0]} if k else {}), "parameter": p,
+                     "mean_rel_dev": float(v), "std_rel_dev": std_rel_dev, "n": n})
+    return rows
+
+
 def make_run(run_dir: Path, overrides: list[str], seed: int, status: str = "completed", error=None,
-             corrupt: bool = False, hydra: bool = True) -> Path:
+             corrupt: bool = False, hydra: bool = True, results: list[dict] | None = None,
+             config: dict | None = None, steps: int = 300) -> Path:
+    """A run directory; ``results`` replaces the random results, ``config`` is written as .hydra/config.yaml
+    (with the objective and model choices from the overrides in .hydra/hydra.yaml)."""
     run_dir.mkdir(parents=True)
     rng = np.random.default_rng(zlib.crc32(f"{run_dir}".encode()))
     if hydra:  # Hydra writes this before the job runs
         (run_dir / ".hydra").mkdir()
         (run_dir / ".hydra" / "overrides.yaml").write_text("".join(f"- {o}\n" for o in overrides))
+    if config is not None:
+        import yaml
+
+        (run_dir / ".hydra").mkdir(exist_ok=True)
+        (run_dir / ".hydra" / "config.yaml").write_text(yaml.safe_dump(config))
+        chosen = dict(o.split("=", 1) for o in overrides if "=" in o and "." not in o.split("=")[0])
+        choices = {"objective": chosen.get("objective", "labelled"), "model": chosen.get("model", "paper_cnn"),
+                   "data": chosen.get("data", "paper")}
+        (run_dir / ".hydra" / "hydra.yaml").write_text(yaml.safe_dump({"hydra": {"runtime": {"choices": choices}}}))
     if corrupt:  # e.g. a job killed while a non-atomic writer was at work
         (run_dir / "metrics.json").write_text('{"status": "completed", "results": [{"split": "te')
         return run_dir
     completed = status == "completed"
     record = {"status": status, "error": error, "overrides": overrides, "seed": seed,
-              "steps": 300 if completed else 0, "train_seconds": 12.34 + seed if completed else 0.0,
-              "results": _results(rng) if completed else [], "monitor": "val/rel_dev"}
+              "steps": steps if completed else 0, "train_seconds": 12.34 + seed if completed else 0.0,
+              "results": (_results(rng) if results is None else results) if completed else [],
+              "monitor": "val/rel_dev"}
     (run_dir / "metrics.json").write_text(json.dumps(record, indent=2))
     if completed:
         _curves(run_dir, rng)
@@ -65,6 +89,11 @@ def make_sweep(sweep: Path, failed: bool = True, extra: tuple = ()) -> Path:
                  error=FAILED_ERROR)
         make_run(sweep / "5", ["objective=labelled", "seed=2", "noise=ladder", *extra], 2, corrupt=True)
     return sweep
+
+
+def plain(cell: str) -> str:
+    """A markdown cell without its marks: **best** and a trailing dagger (gap beyond the seed spread)."""
+    return cell.removeprefix("**").removesuffix("**").removesuffix(" †")
 
 
 def parse_markdown(text: str) -> list[dict]:

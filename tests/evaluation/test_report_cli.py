@@ -62,3 +62,16 @@ def test_report_returns_2_with_one_line_for_a_path_without_runs(tmp_path, sweep,
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(bad) in err and "error" in err
     assert not (tmp_path / "out").exists()
+
+
+def test_latex_and_compare_flags(tmp_path, capsys):
+    a = make_sweep(tmp_path / "a", failed=False)
+    assert main([str(a), "--latex"]) == 0
+    tex = (a / "summary.tex").read_text()
+    assert r"\begin{tabular}" in tex and r"\mathbf{" in tex and "hybrid &" in tex and "labelled &" in tex
+    assert "summary.tex" in capsys.readouterr().err
+    assert main([str(a), "--compare", "objective"]) == 0
+    assert "`objective`" in capsys.readouterr().out
+    assert main([str(a), "--compare", "road", "--out", str(tmp_path / "o")]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "compare='road'" in err and not (tmp_path / "o").exists()

@@ -2,6 +2,9 @@
 
 The spread over seeds is the sample standard deviation (ddof=1) everywhere; with a single seed it is NaN and the
 markdown shows no "±". Override values stay the strings Hydra recorded, so "0.002" and "2e-3" stay distinct rows.
+A results row's "windows" (K, test-time averaging over K windows per recording) is 1 when absent; when rows that
+share their swept values hold more than one K, K becomes a row level of the table. Marks (best row, gap beyond
+the seed spread) and the LaTeX form: see tables.py.
 """
 
 from __future__ import annotations
@@ -16,10 +19,12 @@ import pandas as pd
 
 from hybrid_sysid.evaluation import sweep_plots
 from hybrid_sysid.evaluation.records import RECORD
+from hybrid_sysid.evaluation.tables import K_LEVEL, compared_level, legend, to_latex, to_markdown  # noqa: F401
 
 METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
 HEAD = ["run", "status", "error", "seed"]
-TAIL = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds"]
+TAIL = ["split", "noise_std", "windows", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds"]
+RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
 NO_KEYS = "all"  # the single row label when no override varies across runs
 
 
@@ -77,7 +82,7 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
         base = {"run": name, "status": str(rec["status"]), "error": rec.get("error"), "seed": rec.get("seed"),
                 "steps": rec.get("steps"), "train_seconds": rec.get("train_seconds")}
         overrides = _parse_overrides(rec.get("overrides") or [])
-        results = [{k: r[k] for k in TAIL[:6]} for r in rec.get("results") or []]
+        results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
     except (OSError, ValueError, TypeError, KeyError, AttributeError) as exc:
         overrides = _parse_overrides(_hydra_overrides(run_dir))
         seed = overrides.get("seed", "")
@@ -96,7 +101,7 @@ def _collect(root: Path, runs: list[Path]) -> pd.DataFrame:
     keys = [c for c in df.columns if c not in HEAD + TAIL]  # first-seen order across runs
     df = df.reindex(columns=HEAD + keys + TAIL)
     df[keys] = df[keys].fillna("").astype(str)  # a run without a key ran with that key's default
-    for col in ("seed", "n", "steps"):
+    for col in ("seed", "windows", "n", "steps"):
         df[col] = pd.to_numeric(df[col], errors="coerce").round().astype("Int64")  # NaN-safe, writes "1" not "1.0"
     for col in ("noise_std", "mean_rel_dev", "std_rel_dev", "train_seconds"):
         df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
@@ -104,9 +109,10 @@ def _collect(root: Path, runs: list[Path]) -> pd.DataFrame:
 
 
 def collect(paths) -> pd.DataFrame:
-    """Long form: one row per job x split x noise_std x parameter; a failed or unreadable job is one row with
-    NaN metrics. Columns: run, status, error, seed, one per override key (strings, "" if unset), split,
-    noise_std, parameter, mean_rel_dev, std_rel_dev, n, steps, train_seconds."""
+    """Long form: one row per job x split x noise_std x windows x parameter; a failed or unreadable job is one
+    row with NaN metrics. Columns: run, status, error, seed, one per override key (strings, "" if unset), split,
+    noise_std, windows (1 when the record has none), parameter, mean_rel_dev, std_rel_dev, n, steps,
+    train_seconds."""
     return _collect(*_resolve(paths))
 
 
@@ -136,9 +142,11 @@ def _sort_key(values) -> list[tuple]:
 
 
 def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel_dev") -> pd.DataFrame:
-    """Rows: the swept values other than seed ("all" if none vary). Columns (noise_std, parameter, stat):
-    stat "mean" and "std" (ddof=1) of the metric over the completed seeds; then ("n_seeds", "", "") counting
-    completed runs and ("n_failed", "", "") counting the others (failed, unreadable)."""
+    """Rows: the swept values other than seed ("all" if none vary), plus a level "K" when rows sharing those
+    values hold more than one windows value. Columns (noise_std, parameter, stat): stat "mean" and "std"
+    (ddof=1) of the metric over the completed seeds; then ("n_seeds", "", "") counting completed runs (with a K
+    level: completed runs with results at that K) and ("n_failed", "", "") counting the others (failed,
+    unreadable)."""
     if metric not in METRICS:
         raise ValueError(f"metric={metric!r} is not one of {list(METRICS)}")
     keys = row_keys(df)
@@ -147,12 +155,22 @@ def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel
     runs = df.drop_duplicates("run")
     done = runs.status == "completed"
     counts = pd.DataFrame({"n_seeds": done, "n_failed": ~done}).groupby([runs[k] for k in keys]).sum().astype(int)
-    counts.columns = pd.MultiIndex.from_tuples([(c, "", "") for c in counts.columns])
 
     sub = df[(df.status == "completed") & (df.split == split)]
+    rows = keys
+    if len(sub) and sub.groupby(keys).windows.nunique().max() > 1:  # several K under one row: K is a level
+        sub, rows = sub.assign(**{K_LEVEL: sub.windows}), keys + [K_LEVEL]
+        ks = sorted(sub[K_LEVEL].dropna().unique())
+        labels = [c if isinstance(c, tuple) else (c,) for c in counts.index]
+        index = pd.MultiIndex.from_tuples([(*c, k) for c in labels for k in ks], names=rows)
+        seeds = sub.groupby(rows).run.nunique().reindex(index).fillna(0).astype(int)
+        failed = [int(counts.n_failed.iloc[i]) for i in range(len(counts)) for _ in ks]
+        counts = pd.DataFrame({"n_seeds": seeds.to_numpy(), "n_failed": failed}, index=index)
+    counts.columns = pd.MultiIndex.from_tuples([(c, "", "") for c in counts.columns])
+
     names = ["noise_std", "parameter", "stat"]
     if len(sub):
-        stats = sub.groupby(keys + names[:2])[metric].agg(mean="mean", std=lambda s: s.std(ddof=1))
+        stats = sub.groupby(rows + names[:2])[metric].agg(mean="mean", std=lambda s: s.std(ddof=1))
         cells = stats.stack().unstack(names[:2] + [-1]).sort_index(axis=1)  # noise, parameter, mean|std
         cells.columns = cells.columns.set_names(names)
     else:
@@ -160,29 +178,6 @@ def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel
     table = pd.concat([cells.reindex(counts.index), counts], axis=1)
     table.columns = table.columns.set_names(names)
     return table.iloc[sorted(range(len(table)), key=lambda i: _sort_key(table.index[i]))]
-
-
-def _number(v: float, as_percent: bool) -> str:
-    return f"{100 * v:.2f}" if as_percent else f"{v:.4f}"
-
-
-def to_markdown(table: pd.DataFrame, as_percent: bool = True) -> str:
-    """A GitHub markdown table: one column per (noise, parameter) with "mean ± std" over seeds (std, ddof=1,
-    omitted for a single seed), then the counts of completed seeds and failed jobs."""
-    cells = [c[:2] for c in table.columns if c[2] == "mean"]
-    unit = " [%]" if as_percent else ""
-    header = [str(n) for n in table.index.names] + [f"noise {n:g} {p}{unit}" for n, p in cells] + ["seeds", "failed"]
-    lines = ["| " + " | ".join(header) + " |",
-             "|" + "|".join([" --- "] * table.index.nlevels + [" ---: "] * (len(header) - table.index.nlevels)) + "|"]
-    for label, row in table.iterrows():
-        out = [str(v) if v != "" else "(default)" for v in (label if isinstance(label, tuple) else (label,))]
-        for n, p in cells:
-            mean, std = row[(n, p, "mean")], row[(n, p, "std")]
-            text = "n/a" if pd.isna(mean) else _number(mean, as_percent)
-            out.append(text if pd.isna(std) or pd.isna(mean) else f"{text} ± {_number(std, as_percent)}")
-        out += [str(int(row[("n_seeds", "", "")])), str(int(row[("n_failed", "", "")]))]
-        lines.append("| " + " | ".join(v.replace("|", "\\|") for v in out) + " |")
-    return "\n".join(lines) + "\n"
 
 
 def _write_atomic(path: Path, write) -> None:
@@ -195,18 +190,34 @@ def _write_atomic(path: Path, write) -> None:
         tmp.unlink(missing_ok=True)
 
 
-def _markdown_report(df: pd.DataFrame, table: pd.DataFrame, split: str, metric: str, keys: list[str]) -> str:
+def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
+    """A sentence naming K when every row of the split uses the same K other than 1 (the table then has no K
+    level to show it), else an empty string."""
+    if K_LEVEL in table.index.names:
+        return ""
+    ks = df[(df.status == "completed") & (df.split == split)].windows.dropna().unique()
+    return f" Windows averaged per recording: K = {int(ks[0])}." if len(ks) == 1 and ks[0] != 1 else ""
+
+
+def failed_lines(df: pd.DataFrame, keys: list[str]) -> list[str]:
+    """One markdown list item per failed or unreadable job (its configuration, status and error)."""
+    lines = []
+    for _, r in df.drop_duplicates("run").query("status != 'completed'").iterrows():
+        config = ", ".join([f"{k}={r[k]}" for k in keys if r[k] != ""] + ([f"seed={r.seed}"] if pd.notna(r.seed) else []))
+        error = " ".join(str(r.error).split()) if pd.notna(r.error) else "no error recorded"
+        lines.append(f"- `{r.run}` ({config}): {r.status}: {error}")
+    return lines
+
+
+def _markdown_report(df: pd.DataFrame, table: pd.DataFrame, split: str, metric: str, keys: list[str],
+                     compare: str | None = None) -> str:
     runs = df.drop_duplicates("run")
     bad = runs[runs.status != "completed"]
     lines = [f"# Sweep summary: {METRICS[metric]} on the {split} split [%]", "",
              f"{len(runs)} runs: {len(runs) - len(bad)} completed, {len(bad)} failed or unreadable. "
-             f"Cells: mean ± sample standard deviation (ddof=1) over seeds.", "", to_markdown(table), "## Failed jobs", ""]
-    for _, r in bad.iterrows():
-        config = ", ".join([f"{k}={r[k]}" for k in keys if r[k] != ""] + ([f"seed={r.seed}"] if pd.notna(r.seed) else []))
-        error = " ".join(str(r.error).split()) if pd.notna(r.error) else "no error recorded"
-        lines.append(f"- `{r.run}` ({config}): {r.status}: {error}")
-    if bad.empty:
-        lines.append("None.")
+             f"Cells: mean ± sample standard deviation (ddof=1) over seeds.{windows_note(df, table, split)}", "",
+             to_markdown(table, compare=compare), "## Failed jobs", ""]
+    lines += failed_lines(df, keys) or ["None."]
     return "\n".join(lines) + "\n"
 
 
@@ -223,20 +234,27 @@ def _curves(df: pd.DataFrame, root: Path, keys: list[str]) -> pd.DataFrame:
 
 
 def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mean_rel_dev",
-                  figures: bool = True) -> tuple[pd.DataFrame, pd.DataFrame]:
-    """Write sweep_dir/summary.csv (long form), summary.md (table and failed jobs) and figures/ built from the
-    run records found under paths (default: sweep_dir). Returns (long form, table)."""
+                  figures: bool = True, latex: bool = False,
+                  compare: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Write sweep_dir/summary.csv (long form), summary.md (table and failed jobs), with ``latex`` summary.tex,
+    and figures/ built from the run records found under paths (default: sweep_dir). ``compare``: the row key
+    whose values the marks compare (default: objective when swept). Returns (long form, table)."""
     sweep_dir = Path(sweep_dir)
     root, runs = _resolve(sweep_dir if paths is None else paths)
     if not runs:
         raise ValueError(f"paths={paths if paths is not None else str(sweep_dir)!r} hold no run ({RECORD})")
     df = _collect(root, runs)
     table = summary_table(df, split=split, metric=metric)
+    compared_level(table, compare)  # a bad compare key fails before anything is written
     keys = row_keys(df)
     sweep_dir.mkdir(parents=True, exist_ok=True)
     _write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
-    _write_atomic(sweep_dir / "summary.md",
-                  lambda p: p.write_text(_markdown_report(df, table, split, metric, keys), encoding="utf-8"))
+    _write_atomic(sweep_dir / "summary.md", lambda p: p.write_text(
+        _markdown_report(df, table, split, metric, keys, compare), encoding="utf-8"))
+    if latex:
+        caption = f"{METRICS[metric]} on the {split} split [%], mean ± std over seeds"
+        _write_atomic(sweep_dir / "summary.tex",
+                      lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"))
     if figures:
         out = sweep_dir / "figures"
         out.mkdir(exist_ok=True)
