@@ -74,11 +74,30 @@ def test_fast_cnn_layers():
     convs = [m for m in model.modules() if isinstance(m, nn.Conv1d)]
     assert [tuple(c.weight.shape) for c in convs] == [(32, 3, 5)] + [(32, 32, 5)] * 3
     assert model.head.in_features == 32 and model.head.out_features == 2
-    assert sum(isinstance(m, nn.MaxPool1d) for m in model.modules()) == 4
+    assert [c.stride for c in convs] == [(2,)] * 4  # default downsampling: stride-2 convolutions
+    assert not any(isinstance(m, nn.MaxPool1d) for m in model.modules())
+    pooled = FastCNN(channels=32, n_layers=4, kernel_size=5, downsample="pool")
+    assert [c.stride for c in pooled.modules() if isinstance(c, nn.Conv1d)] == [(1,)] * 4
+    assert sum(isinstance(m, nn.MaxPool1d) for m in pooled.modules()) == 4
+
+
+@pytest.mark.parametrize("downsample", ["stride", "pool"])
+def test_fast_cnn_halves_the_sequence_per_layer(downsample):
+    # each layer halves the length (500 -> 250 -> 125 -> 63|62), so the receptive field is the same either way
+    model = FastCNN(n_layers=3, downsample=downsample).eval()
+    lengths = []
+    hook = lambda m, i, o: lengths.append(o.shape[-1])  # noqa: E731
+    for m in model.features:
+        if isinstance(m, nn.ReLU):
+            m.register_forward_hook(hook)
+    model(torch.randn(2, 2, 500))
+    expected = [250, 125, 63] if downsample == "stride" else [500, 250, 125]  # pool comes after the ReLU
+    assert lengths == expected
 
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"channels": 0}, "channels = 0"),
+    ({"downsample": "avg"}, "downsample = 'avg'"),
     ({"n_layers": 1.5}, "n_layers = 1.5"),
     ({"kernel_size": 4}, "kernel_size = 4.*odd"),
     ({"margin": -0.1}, r"margin = -0.1.*\[0, 1\]"),
