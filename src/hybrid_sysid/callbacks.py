@@ -3,6 +3,10 @@
 Hydra skips on_multirun_end when a job raised, and with the joblib launcher job callbacks run in worker
 processes; so jobs record their own failure and return normally (see train.main), and the summary here is
 built from the run records on disk alone. A sweep with a failed job still exits non-zero.
+
+Options (set under hydra.callbacks.sweep_summary in an experiment file, e.g. conf/experiment/paper.yaml):
+``reproduction: true`` also writes reproduction.md (the paper's figures beside ours); ``latex: true`` also
+writes summary.tex.
 """
 
 from __future__ import annotations
@@ -18,16 +22,22 @@ log = logging.getLogger("hybrid_sysid")
 
 
 class SweepSummary(Callback):
-    def __init__(self, split: str = "test", metric: str = "mean_rel_dev"):
-        self.split, self.metric = split, metric
+    def __init__(self, split: str = "test", metric: str = "mean_rel_dev", reproduction: bool = False,
+                 latex: bool = False):
+        self.split, self.metric, self.reproduction, self.latex = split, metric, reproduction, latex
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         from hybrid_sysid.evaluation.summary import to_markdown, write_summary
 
         sweep_dir = Path(config.hydra.sweep.dir)
-        df, table = write_summary(sweep_dir, split=self.split, metric=self.metric)
+        df, table = write_summary(sweep_dir, split=self.split, metric=self.metric, latex=self.latex)
         print(f"\n{self.metric} on the {self.split} split [%], mean ± std over seeds ({sweep_dir}):\n")
         print(to_markdown(table))
+        if self.reproduction:
+            from hybrid_sysid.evaluation.reproduction import write_reproduction
+
+            print(write_reproduction(sweep_dir))
+            print(f"(written to {sweep_dir / 'reproduction.md'})")
         failed = df[df.status != "completed"].drop_duplicates("run")
         if len(failed):
             for _, row in failed.iterrows():

@@ -1,12 +1,20 @@
 """hybrid-sysid-report PATH...: rebuild the sweep tables and figures from run or sweep directories.
 
+    hybrid-sysid-report SWEEP                      summary.csv, summary.md, figures/ in SWEEP
+    hybrid-sysid-report SWEEP --latex              ... and summary.tex
+    hybrid-sysid-report SWEEP --reproduction       ... and reproduction.md: the paper's figures beside ours
+    hybrid-sysid-report SWEEP [SWEEP...] --results docs/results.md
+                                                   a results page, one section per SWEEP, figures in
+                                                   docs/figures/ (no summary files unless --out is given)
+
 Exit code: 0 if every run completed, 1 if any failed or is unreadable (everything is still written),
-2 if a path does not exist or holds no runs.
+2 if a path does not exist or holds no runs, or --compare names a key that is not swept.
 """
 
 from __future__ import annotations
 
 import argparse
+import shlex
 import sys
 from pathlib import Path
 
@@ -27,6 +35,12 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--compare", default=None, metavar="KEY",
                    help="the swept key whose rows the marks compare (default: objective when swept)")
     p.add_argument("--latex", action="store_true", help="also write summary.tex (a booktabs table)")
+    p.add_argument("--reproduction", action="store_true",
+                   help="also write reproduction.md: the paper's figures beside ours, protocol and reading "
+                   "(with --results: a section per PATH in the page)")
+    p.add_argument("--results", type=Path, default=None, metavar="FILE",
+                   help="write a results page (one section per PATH: table, figure in FILE's folder/figures/) "
+                   "instead of the summary files, which are still written when --out is given")
     return p.parse_args(argv)
 
 
@@ -39,19 +53,41 @@ def main(argv=None) -> int:
         if not find_runs([path]):
             print(f"{PROG}: error: no runs ({RECORD}) under {path}", file=sys.stderr)
             return 2
-    out = args.out or (args.paths[0] if len(args.paths) == 1 else Path("report"))
+    bad = 0
     try:
-        df, table = write_summary(out, paths=args.paths, split=args.split, metric=args.metric, latex=args.latex,
-                                  compare=args.compare)
+        if args.results is None or args.out is not None:
+            out = args.out or (args.paths[0] if len(args.paths) == 1 else Path("report"))
+            df, table = write_summary(out, paths=args.paths, split=args.split, metric=args.metric,
+                                      latex=args.latex, compare=args.compare)
+            print(to_markdown(table, compare=args.compare), end="")
+            written = ["summary.csv", "summary.md"] + ["summary.tex"] * args.latex
+            if args.reproduction:
+                from hybrid_sysid.evaluation.reproduction import write_reproduction
+
+                print("\n" + write_reproduction(out, paths=args.paths), end="")
+                written.append("reproduction.md")
+            runs = df.drop_duplicates("run")
+            bad = int((runs.status != "completed").sum())
+            print(f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/{', '.join(written)}, figures/",
+                  file=sys.stderr)
+        if args.results is not None:
+            from hybrid_sysid.evaluation.results_doc import write_results
+
+            command = " ".join([PROG, *map(shlex.quote, map(str, args.paths)), "--results",
+                                shlex.quote(str(args.results))] + ["--reproduction"] * args.reproduction
+                               + ([f"--compare {args.compare}"] if args.compare else [])
+                               + ([f"--split {args.split}"] if args.split != "test" else [])
+                               + ([f"--metric {args.metric}"] if args.metric != "mean_rel_dev" else []))
+            text, n, bad_results = write_results(args.results, args.paths, split=args.split, metric=args.metric,
+                                                 compare=args.compare, reproduction=args.reproduction,
+                                                 command=command)
+            print(text, end="")
+            bad = max(bad, bad_results)
+            print(f"{n} runs, {bad_results} failed or unreadable; wrote {args.results} and "
+                  f"{args.results.parent / 'figures'}/", file=sys.stderr)
     except ValueError as exc:  # e.g. --compare naming a key that is not swept
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
-    print(to_markdown(table, compare=args.compare), end="")
-    runs = df.drop_duplicates("run")
-    bad = int((runs.status != "completed").sum())
-    tex = ", summary.tex" if args.latex else ""
-    print(f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/summary.csv, summary.md{tex}, figures/",
-          file=sys.stderr)
     return 1 if bad else 0
 
 
