@@ -34,10 +34,13 @@ def relative_states(
     (eq. 11 updates w with v_{k+1}); with the consistent recording the seat equation then holds exactly, while
     pairing z'_k with y'_k would leave a bias of about dt p1 y''_k (1.2% in p at dt = 1 ms, 6% at 5 ms).
     """
-    seat_vel, seat_pos = integrate(seat_acc, dt)
-    body_vel, body_pos = integrate(body_acc, dt)
-    if measurement == "consistent":
-        body_vel += dt * np.asarray(body_acc, dtype=np.float64)
-    elif measurement != "paper":
+    if measurement not in ("paper", "consistent"):
         raise ValueError(f"measurement = {measurement!r} is unknown; allowed: paper, consistent")
-    return seat_vel - body_vel, seat_pos - body_pos
+    body_acc = np.asarray(body_acc, dtype=np.float64)
+    # Integrate the difference, not each channel: seat and body positions follow the road (and drift) by far
+    # more than their difference, so subtracting two integrated positions cancels most digits (the relative
+    # displacement lost ~1e-12 of its size that way). Integration is linear, so the result is the same.
+    rel_vel, rel_disp = integrate(np.asarray(seat_acc, dtype=np.float64) - body_acc, dt)
+    if measurement == "consistent":
+        rel_vel -= dt * body_acc
+    return rel_vel, rel_disp
