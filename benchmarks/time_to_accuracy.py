@@ -27,6 +27,24 @@ def first_crossing(curves: pd.DataFrame):
     return wide, (hit.iloc[0] if len(hit) else None)
 
 
+def plot(wide: pd.DataFrame, png: Path, title: str) -> None:
+    """Clean-test error against training wall time, with the paper's labelled figures as dashed lines."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for (param, target), color in zip(PAPER.items(), ("C0", "C1")):
+        ax.plot(wide.seconds, wide[param] * 100, "o-", ms=3, color=color, label=f"{param} (test, clean)")
+        ax.axhline(target * 100, ls="--", color=color, lw=1, label=f"paper, labelled: {param} {target:.1%}")
+    ax.set(xlabel="training wall time [s] (evaluations excluded)", ylabel="mean relative deviation [%]",
+           yscale="log", title=f"time to accuracy: {title}")
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    fig.savefig(png, dpi=100)
+    plt.close(fig)
+
+
 def main(overrides):
     overrides = ["trainer.eval_every_n_steps=50", "trainer.progress_bar=false", *overrides]
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
@@ -39,6 +57,9 @@ def main(overrides):
     name = "_".join(o.replace("/", "-") for o in sys.argv[1:]) or "default"
     curves.to_csv(out / f"time_to_accuracy_{name}.csv", index=False)
     wide, hit = first_crossing(curves)
+    png = Path(__file__).parent / f"time_to_accuracy_{name}.png"
+    plot(wide, png, " ".join(sys.argv[1:]) or "defaults")
+    print(f"curve: {png}")
     print(f"overrides: {' '.join(overrides)}")
     print(f"training: {record['steps']} steps, {record['train_seconds']:.1f} s (evaluations excluded)")
     if hit is not None:
