@@ -92,7 +92,8 @@ def test_fewer_than_three_seeds_warns_and_a_single_seed_is_never_daggered(tmp_pa
     assert compare_marks(table)[(0.0, "p1")].to_dict() == {"labelled": "best", "hybrid": "unknown"}
     text = to_markdown(table)
     rows = {r["objective"]: r for r in parse_markdown(text)}
-    assert rows["hybrid"]["noise 0 p1 [%]"] == "90.00" and (rows["hybrid"]["seeds"], rows["labelled"]["seeds"]) == ("1", "2")
+    assert rows["hybrid"]["noise 0 p1 [%]"] == "90.00"
+    assert (rows["hybrid"]["seeds"], rows["labelled"]["seeds"]) == ("1", "2")
     [warning] = [ln for ln in text.splitlines() if ln.startswith("Warning")]
     assert "objective=hybrid (1)" in warning and "objective=labelled (2)" in warning
 

@@ -20,7 +20,7 @@ import numpy as np
 import pandas as pd
 
 from hybrid_sysid.evaluation.protocol import protocol, run_choices, run_config
-from hybrid_sysid.evaluation.summary import _collect, _resolve, _write_atomic, row_keys
+from hybrid_sysid.evaluation.summary import _collect, _resolve, _sort_key, _write_atomic, row_keys
 from hybrid_sysid.evaluation.tables import K_LEVEL
 
 PAPER_STEPS = 500_000
@@ -135,7 +135,7 @@ def reproduction_table(df: pd.DataFrame, root: Path) -> pd.DataFrame:
                          "ours_sigma": g.std_rel_dev.mean(), "n_seeds": g.run.nunique()})
     objectives = list(OBJECTIVES) + sorted(set(done.objective) - set(OBJECTIVES))
     others = done[extra].drop_duplicates().itertuples(index=False, name=None) if extra else [()]
-    others = sorted(set(others), key=lambda t: [str(v) for v in t])
+    others = sorted(set(others), key=_sort_key)  # numbers in numeric order: K = 4 before K = 16
     rows = []
     for split in SPLITS:
         for noise in NOISE_LEVELS:
@@ -177,8 +177,13 @@ def _ours(row, p) -> str:
     return _pct(mean) if pd.isna(sd) else f"{_pct(mean)} ± {_pct(sd)}"
 
 
+def _extra_columns(rt: pd.DataFrame) -> list[str]:
+    """The row keys beyond split, noise and objective: other swept keys, and K."""
+    return [c for c in rt.columns if isinstance(c, str) and c not in ("split", "noise_std", "objective", "n_seeds")]
+
+
 def table_markdown(rt: pd.DataFrame) -> str:
-    extra = [c for c in rt.columns if isinstance(c, str) and c not in ("split", "noise_std", "objective", "n_seeds")]
+    extra = _extra_columns(rt)
     header = ["split", "noise std", "objective", *extra]
     for p in PARAMETERS:
         header += [f"{p} paper", f"{p} ours"]
@@ -241,6 +246,10 @@ def reading(rt: pd.DataFrame, proto: dict[str, str], max_steps: int | None, m3=(
         s.append(f"Our runs stopped at {max_steps:,} steps, {100 * max_steps / PAPER_STEPS:.2g}% of the paper's "
                  "500,000" + (" (a CPU budget; `trainer=gpu trainer.max_steps=500000` runs the full protocol)."
                               if max_steps < PAPER_STEPS else "."))
+    extra = _extra_columns(rt)
+    if extra and len(rt):
+        first = ", ".join(f"{k}={rt.iloc[0][k] if rt.iloc[0][k] != '' else '(default)'}" for k in extra)
+        s.append(f"Where rows differ in {', '.join(extra)}, the figures quoted in this paragraph are those of {first}.")
     for noise, name in ((0.0, "clean test data"), (0.01, "test data with noise std 0.01")):
         parts = []
         for objective in OBJECTIVES:

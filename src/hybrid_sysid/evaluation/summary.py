@@ -19,7 +19,7 @@ import pandas as pd
 
 from hybrid_sysid.evaluation import sweep_plots
 from hybrid_sysid.evaluation.records import RECORD
-from hybrid_sysid.evaluation.tables import K_LEVEL, compared_level, legend, to_latex, to_markdown  # noqa: F401
+from hybrid_sysid.evaluation.tables import K_LEVEL, compared_level, to_latex, to_markdown  # noqa: F401 (re-export)
 
 METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
 HEAD = ["run", "status", "error", "seed"]
