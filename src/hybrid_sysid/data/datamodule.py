@@ -134,9 +134,9 @@ class QCMDataModule(L.LightningDataModule):
     """Simulated (or cached) quarter-car recordings cut into windows.
 
     Training: random windows drawn afresh every epoch, optional noise ``train_std``.
-    Evaluation: one fixed, seeded window per recording; Gaussian noise of each std in ``eval_std`` added to
-    both channels, from one seeded standard-normal draw per split scaled to each level (so levels differ
-    only in size, which keeps robustness curves smooth).
+    Evaluation: one fixed, seeded window per recording (or K of them: ``eval_batch(windows=K)``); Gaussian
+    noise of each std in ``eval_std`` added to both channels, from one seeded standard-normal draw per split
+    scaled to each level (so levels differ only in size, which keeps robustness curves smooth).
     """
 
     def __init__(
@@ -181,23 +181,71 @@ class QCMDataModule(L.LightningDataModule):
     def rows(self, split: str) -> np.ndarray:
         return getattr(self.split, split)
 
-    def eval_batch(self, split: str, noise_std: float = 0.0, limit: int | None = None) -> dict[str, torch.Tensor]:
-        """All (or the first ``limit``) recordings of a split at their fixed windows, with noise of this std."""
-        key = (split, float(noise_std), limit)
-        if key not in self._eval_cache:
-            self.setup()
-            rows = self.rows(split)
-            rng = np.random.default_rng([self.seed, _SPLIT_CODE[split]])
-            starts = rng.integers(0, self.data.n_steps - self.window + 1, size=len(rows))
-            base = rng.standard_normal((len(rows), 2, self.window)) if noise_std > 0 else None
-            if limit is not None:
-                rows, starts = rows[:limit], starts[:limit]
-                base = None if base is None else base[:limit]
-            self._eval_cache[key] = self.data.batch(rows, starts, None if base is None else noise_std * base)
-        return self._eval_cache[key]
+    def n_starts(self) -> int:
+        """How many window starts a recording offers."""
+        return self.spec.n_steps - self.window + 1
 
-    def eval_dataloader(self, split: str, noise_std: float = 0.0, limit: int | None = None) -> DataLoader:
-        full = self.eval_batch(split, noise_std, limit)
+    def eval_batch(self, split: str, noise_std: float = 0.0, limit: int | None = None,
+                   windows: int = 1) -> dict[str, torch.Tensor]:
+        """All (or the first ``limit``) recordings of a split at their fixed windows, with noise of this std.
+
+        ``windows`` = K fixed windows per recording, each with its own noise, laid out recording by recording
+        (batch row i * K + j is window j of recording i). Window 0 is always the one K = 1 gives, from the
+        same generator draws, so K = 1 reproduces earlier results exactly; windows 1..K-1 come from separate
+        seeded streams, one per j (so the K = 4 windows are the first four of the K = 8 ones), with starts
+        distinct within a recording. Each window gets its own noise draw, even where windows overlap: K > 1
+        therefore also averages K independent noise realisations of the shared samples, more than one real
+        recording (one noise realisation) would offer; read K > 1 gains under noise with that in mind.
+        """
+        is_int = isinstance(windows, (int, np.integer)) and not isinstance(windows, bool)
+        if not is_int or not 1 <= windows <= self.n_starts():
+            raise ValueError(f"evaluation.windows = {windows!r} is not allowed: every K must be an integer in "
+                             f"[1, data.n_steps - data.window + 1 = {self.n_starts()}]")
+        key = (split, float(noise_std), limit, int(windows))
+        if key in self._eval_cache:
+            return self._eval_cache[key]
+        self.setup()
+        rows = self.rows(split)
+        code = _SPLIT_CODE[split]
+        rng = np.random.default_rng([self.seed, code])
+        starts = rng.integers(0, self.n_starts(), size=len(rows))
+        base = rng.standard_normal((len(rows), 2, self.window)) if noise_std > 0 else None
+        if windows > 1:
+            starts, base = self._more_windows(rows, code, starts, base, windows)
+        if limit is not None:
+            rows, starts = rows[:limit], starts[:limit]
+            base = None if base is None else base[:limit]
+        if windows > 1:  # flatten to one batch row per window, recording-major
+            rows, starts = np.repeat(rows, windows), starts.reshape(-1)
+            base = None if base is None else base.reshape(-1, 2, self.window)
+        batch = self.data.batch(rows, starts, None if base is None else noise_std * base)
+        if windows == 1:  # K > 1 serves the final evaluation once; keep only K = 1 (curves reuse it)
+            self._eval_cache[key] = batch
+        return batch
+
+    def _more_windows(self, rows, code, starts0, base0, k):
+        """(n, K) starts and (n, K, 2, window) standard-normal noise; column 0 is the K = 1 window."""
+        n = len(rows)
+        starts = np.empty((n, k), dtype=np.int64)
+        starts[:, 0] = starts0
+        base = None if base0 is None else np.empty((n, k, 2, self.window))
+        if base is not None:
+            base[:, 0] = base0
+        for j in range(1, k):
+            g = np.random.default_rng([self.seed, code, 100, j])
+            s = g.integers(0, self.n_starts(), size=n)
+            clash = (s[:, None] == starts[:, :j]).any(axis=1)
+            while clash.any():  # redraw clashing starts only; ends as K <= the number of starts
+                s[clash] = g.integers(0, self.n_starts(), size=int(clash.sum()))
+                clash = (s[:, None] == starts[:, :j]).any(axis=1)
+            starts[:, j] = s
+            if base is not None:
+                base[:, j] = np.random.default_rng([self.seed, code, 200, j]).standard_normal((n, 2, self.window))
+        return starts, base
+
+    def eval_dataloader(self, split: str, noise_std: float = 0.0, limit: int | None = None,
+                        windows: int = 1) -> DataLoader:
+        full = self.eval_batch(split, noise_std, limit, windows)
         n = len(full["index"])
         chunks = [{k: v[i:i + self.eval_batch_size] for k, v in full.items()} for i in range(0, n, self.eval_batch_size)]
         return DataLoader(chunks, batch_size=None)
