@@ -30,6 +30,10 @@ BAD = [
     (["objective=combined", "objective.labelled_weight=0", "objective.hybrid_weight=0"],
      r"objective.labelled_weight / objective.hybrid_weight = \[0, 0\] is not allowed: .*not both zero"),
     (["trainer.max_steps=0"], r"trainer.max_steps = 0 is not allowed: must be >= 1"),
+    (["evaluation.windows=[1,0]"], r"evaluation.windows = \[1, 0\] is not allowed: a non-empty list of integers K in "
+                                   r"\[1, data.n_steps - data.window \+ 1 = 701\]"),
+    (["evaluation.windows=[]"], r"evaluation.windows = \[\] is not allowed: a non-empty list of integers K"),
+    (["data=tiny", "evaluation.windows=[202]"], r"evaluation.windows = \[202\] is not allowed: .* = 201\]"),
 ]
 
 
@@ -48,6 +52,7 @@ def test_the_default_config_is_valid(make_cfg):
     (["data.no_such_key=1"], ConfigKeyError),
     (["data.dt=fast"], ValidationError),
     (["trainer.max_steps=1.5"], ValidationError),
+    (["evaluation.windows=[1.5]"], ValidationError),
 ])
 def test_unknown_keys_and_wrong_types_fail_at_composition(make_cfg, overrides, error):
     with pytest.raises((ConfigCompositionException, error)):

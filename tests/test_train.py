@@ -34,11 +34,13 @@ def test_record_follows_the_schema(tiny_run):
     assert keys == expected
     for r in on_disk["results"]:
         assert r["mean_rel_dev"] >= 0 and r["std_rel_dev"] >= 0 and r["n"] > 0
+        assert r["windows"] == 1  # evaluation.windows defaults to [1]
 
 
 def test_predictions_and_curves_agree_with_the_record(tiny_run):
     record, run_dir = tiny_run
     pred = pd.read_csv(run_dir / "predictions.csv")
+    assert (pred.windows == 1).all()
     for r in record["results"]:
         sub = pred[(pred.split == r["split"]) & (pred.noise_std == r["noise_std"])]
         p = r["parameter"]
@@ -58,6 +60,19 @@ def test_same_seed_same_numbers_other_seed_other_numbers(make_cfg, tmp_path, tin
     assert again["results"] == record["results"]
     other = train(make_cfg(*TINY, "seed=1"), tmp_path / "other")
     assert other["results"] != record["results"]
+
+
+def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_path, tiny_run):
+    record, _ = tiny_run
+    run = train(make_cfg(*TINY, "evaluation.windows=[1,4]"), tmp_path / "k")
+    k1 = [r for r in run["results"] if r["windows"] == 1]
+    assert k1 == record["results"]  # same training, same K = 1 windows and noise: bit for bit
+    k4 = [r for r in run["results"] if r["windows"] == 4]
+    assert {(r["split"], r["noise_std"]) for r in k4} == {("test", 0.0), ("test", 0.05)}
+    pred = pd.read_csv(tmp_path / "k" / "predictions.csv")
+    assert sorted(pred[pred.split == "test"].windows.unique()) == [1, 4]
+    assert sorted(pred[pred.split != "test"].windows.unique()) == [1]
+    assert (tmp_path / "k" / "figures" / "test_noise0.05_windows4.png").exists()
 
 
 def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):

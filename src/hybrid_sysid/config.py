@@ -78,6 +78,13 @@ class TrainerConfig:
 
 
 @dataclass
+class EvaluationConfig:
+    # K values: for each K and test noise level, average the predictions on K fixed, seeded windows per
+    # recording (K = 1: the single window of earlier versions, same numbers)
+    windows: List[int] = field(default_factory=lambda: [1])
+
+
+@dataclass
 class Config:
     seed: int = 0
     resume: Optional[str] = None
@@ -87,6 +94,7 @@ class Config:
     model: ModelConfig = MISSING
     objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
     trainer: TrainerConfig = MISSING
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     car: Dict[str, float] = field(default_factory=dict)  # QuarterCar overrides, e.g. car.c3=600
 
 
@@ -138,9 +146,15 @@ def validate(cfg: DictConfig) -> None:
         _bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
     if t.monitor not in ("auto", "val/loss", "val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev"):
         _bad("trainer.monitor", t.monitor, "one of auto, val/loss, val/rel_dev, val/p1_rel_dev, val/p2_rel_dev")
+    windows = list(cfg.evaluation.windows)
+    n_starts = d.n_steps - d.window + 1
+    if not windows or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= n_starts for k in windows):
+        _bad("evaluation.windows", windows, f"a non-empty list of integers K in [1, data.n_steps - data.window + 1 "
+             f"= {n_starts}] (windows per recording)")
     obj = cfg.objective
     if "labelled_weight" in obj or "hybrid_weight" in obj:
         lw, hw = obj.get("labelled_weight", 0.0), obj.get("hybrid_weight", 0.0)
         if lw < 0 or hw < 0 or lw + hw == 0:
             _bad("objective.labelled_weight / objective.hybrid_weight", [lw, hw],
                  "both must be >= 0 and not both zero")
+

@@ -71,25 +71,44 @@ def monitor_of(cfg: DictConfig, objective) -> str:
     return m
 
 
-def evaluate(model: ParameterEstimator, dm: QCMDataModule, noise_levels) -> tuple[list[dict], pd.DataFrame]:
-    """Relative deviations per split and noise level, plus one prediction row per recording."""
+def evaluate(model, dm: QCMDataModule, noise_levels, windows=(1,)) -> tuple[list[dict], pd.DataFrame]:
+    """Relative deviations per split, noise level and K (test predictions averaged over K windows per
+    recording; train and val on one window), plus one prediction row per recording and evaluation.
+
+    ``model`` is anything with ``predict_split(dm, split, noise_std, limit, windows)``."""
     results, frames = [], []
-    evals = [("train", 0.0), ("val", 0.0)] + [("test", float(s)) for s in noise_levels]
-    for split, std in evals:
-        pred, true = model.predict_split(dm, split, std)
-        results += summarise(pred, true, split=split, noise_std=std)
+    evals = [("train", 0.0, 1), ("val", 0.0, 1)] + [("test", float(s), int(k)) for s in noise_levels for k in windows]
+    for split, std, k in evals:
+        pred, true = model.predict_split(dm, split, std, windows=k)
+        results += summarise(pred, true, split=split, noise_std=std, windows=k)
         rows = dm.rows(split)
         frames.append(pd.DataFrame({
-            "split": split, "noise_std": std, "recording": rows, "road_class": dm.dataset.road_class[rows],
-            "m3": dm.dataset.m3[rows], "p1_true": true[:, 0], "p1_pred": pred[:, 0],
-            "p2_true": true[:, 1], "p2_pred": pred[:, 1]}))
+            "split": split, "noise_std": std, "windows": k, "recording": rows,
+            "road_class": dm.dataset.road_class[rows], "m3": dm.dataset.m3[rows], "p1_true": true[:, 0],
+            "p1_pred": pred[:, 0], "p2_true": true[:, 1], "p2_pred": pred[:, 1]}))
     return results, pd.concat(frames, ignore_index=True)
+
+
+def write_outputs(run_dir: Path, predictions: pd.DataFrame, curves: pd.DataFrame) -> None:
+    """predictions.csv, curves.csv and figures/ (test predictions per noise level and K, learning curves)."""
+    curves.to_csv(run_dir / "curves.csv", index=False)
+    predictions.to_csv(run_dir / "predictions.csv", index=False)
+    figures = run_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    test = predictions[predictions.split == "test"]
+    for (std, k), sub in test.groupby(["noise_std", "windows"], sort=True):
+        name = f"test_noise{std:g}" + ("" if k == 1 else f"_windows{k}")
+        title = f"test, noise std {std:g} m/s^2" + ("" if k == 1 else f", mean of {k} windows")
+        plots.predictions_figure(sub, figures / f"{name}.png", title)
+    if len(curves):
+        plots.learning_curves_figure(curves, figures / "learning_curves.png")
 
 
 def console_table(results: list[dict]) -> str:
     df = pd.DataFrame(results)
     df = df[df.split != "val"]
-    table = df.pivot_table(index=["split", "noise_std"], columns="parameter", values="mean_rel_dev")
+    index = ["split", "noise_std"] + (["windows"] if df.get("windows", pd.Series([1])).ne(1).any() else [])
+    table = df.pivot_table(index=index, columns="parameter", values="mean_rel_dev")
     return (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
 
 
@@ -125,6 +144,7 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
 
     dm = build_datamodule(cfg)
     noise_levels = [float(s) for s in cfg.noise.eval_std]
+    windows = [int(k) for k in cfg.evaluation.windows]
     curve_sets = [("train", 0.0)] + [("test", s) for s in noise_levels]
     model = build_model(cfg, curve_sets)
     monitor = monitor_of(cfg, model.objective)
@@ -148,18 +168,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     if ckpt.best_model_path:
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
         model.load_state_dict(state)
-    results, predictions = evaluate(model, dm, noise_levels)
-    curves = pd.DataFrame(model.curve_rows)
-    curves.to_csv(run_dir / "curves.csv", index=False)
-    predictions.to_csv(run_dir / "predictions.csv", index=False)
-
-    figures = run_dir / "figures"
-    figures.mkdir(exist_ok=True)
-    for std in noise_levels:
-        sub = predictions[(predictions.split == "test") & (predictions.noise_std == std)]
-        plots.predictions_figure(sub, figures / f"test_noise{std:g}.png", f"test, noise std {std:g} m/s^2")
-    if len(curves):
-        plots.learning_curves_figure(curves, figures / "learning_curves.png")
+    results, predictions = evaluate(model, dm, noise_levels, windows)
+    write_outputs(run_dir, predictions, pd.DataFrame(model.curve_rows))
 
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
                         results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
