@@ -151,6 +151,7 @@ def validate(cfg: DictConfig) -> None:
     if not windows or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= n_starts for k in windows):
         _bad("evaluation.windows", windows, f"a non-empty list of integers K in [1, data.n_steps - data.window + 1 "
              f"= {n_starts}] (windows per recording)")
+    _validate_baseline(cfg)
     obj = cfg.objective
     if "labelled_weight" in obj or "hybrid_weight" in obj:
         lw, hw = obj.get("labelled_weight", 0.0), obj.get("hybrid_weight", 0.0)
@@ -158,3 +159,19 @@ def validate(cfg: DictConfig) -> None:
             _bad("objective.labelled_weight / objective.hybrid_weight", [lw, hw],
                  "both must be >= 0 and not both zero")
 
+
+def _validate_baseline(cfg: DictConfig) -> None:
+    """A baseline (no network) checks its own arguments when built: build it here, before any work."""
+    from hydra.utils import get_class
+    from omegaconf import OmegaConf
+
+    from hybrid_sysid.baselines import is_baseline
+
+    if not is_baseline(str(cfg.model.net.get("_target_", ""))):
+        return
+    kwargs = OmegaConf.to_container(cfg.model.net, resolve=True)
+    cls = get_class(kwargs.pop("_target_"))
+    try:  # called directly: instantiate() would wrap the one-line message in its own
+        cls(**kwargs).check_lengths(cfg.data.window, cfg.data.n_steps)
+    except ValueError as exc:  # the baseline's messages already name the key
+        raise ConfigError(str(exc)) from exc

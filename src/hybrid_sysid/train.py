@@ -23,6 +23,7 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid import config as schema
+from hybrid_sysid.baselines import is_baseline
 from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.data import DatasetSpec, QCMDataModule
 from hybrid_sysid.evaluation import plots
@@ -32,6 +33,7 @@ from hybrid_sysid.model.module import ParameterEstimator
 from hybrid_sysid.physics import QuarterCar
 
 log = logging.getLogger("hybrid_sysid")
+CURVE_COLUMNS = ["step", "seconds", "split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]
 CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
 # hydra.run.dir is `resume` when given, else a new time-stamped directory
 OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
@@ -75,7 +77,8 @@ def evaluate(model, dm: QCMDataModule, noise_levels, windows=(1,)) -> tuple[list
     """Relative deviations per split, noise level and K (test predictions averaged over K windows per
     recording; train and val on one window), plus one prediction row per recording and evaluation.
 
-    ``model`` is anything with ``predict_split(dm, split, noise_std, limit, windows)``."""
+    ``model`` is anything with ``predict_split(dm, split, noise_std, limit, windows)``: a ParameterEstimator
+    or a baseline (hybrid_sysid.baselines)."""
     results, frames = [], []
     evals = [("train", 0.0, 1), ("val", 0.0, 1)] + [("test", float(s), int(k)) for s in noise_levels for k in windows]
     for split, std, k in evals:
@@ -145,6 +148,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     dm = build_datamodule(cfg)
     noise_levels = [float(s) for s in cfg.noise.eval_std]
     windows = [int(k) for k in cfg.evaluation.windows]
+    if is_baseline(cfg.model.net._target_):
+        return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows)
     curve_sets = [("train", 0.0)] + [("test", s) for s in noise_levels]
     model = build_model(cfg, curve_sets)
     monitor = monitor_of(cfg, model.objective)
@@ -176,6 +181,23 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
                         fit_seconds=round(fit_seconds, 2))
     write_json_atomic(run_dir / RECORD, record)
     log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
+    return record
+
+
+def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, noise_levels, windows) -> dict:
+    """A baseline without a network (``trainable = False``, e.g. least squares): no Lightning, no training.
+    Its record has the same form as a network run's, with steps 0 and train_seconds = the time of its fits
+    (all done while evaluating); curves.csv has the header only (no learning curve)."""
+    estimator = instantiate(cfg.model.net, _convert_="all")
+    dm.setup()
+    results, predictions = evaluate(estimator, dm, noise_levels, windows)
+    write_outputs(run_dir, predictions, pd.DataFrame(columns=CURVE_COLUMNS))
+    record = run_record("completed", overrides, cfg.seed, steps=0, train_seconds=estimator.fit_seconds,
+                        results=results, monitor=None, best_checkpoint=None,
+                        fit_seconds=round(estimator.fit_seconds, 2))
+    write_json_atomic(run_dir / RECORD, record)
+    log.info("run %s: baseline %s, fits in %.2f s\n%s", run_dir, cfg.model.net._target_, estimator.fit_seconds,
+             console_table(results))
     return record
 
 
