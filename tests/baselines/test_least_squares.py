@@ -97,11 +97,3 @@ def test_under_noise_the_band_pass_beats_the_unfiltered_fit(dm):
     band = mean_dev(LeastSquaresEstimator(span="series", filter="bandpass"), dm, 0.01)
     # measured: plain 3.2 / 0.81 (p1 / p2: integrated noise swamps the regressors), band-pass 0.008 / 0.002
     assert (band < 0.2 * plain).all() and (band < 0.1).all()
-
-
-def test_averaging_k_windows_reduces_the_error_under_noise(dm):
-    # measured 0.0095 / 0.0027 at K = 1, 0.0050 / 0.0013 at K = 8. (The unfiltered window fit gains nothing
-    # from K: its error under noise is a bias of the integrated noise in the regressors, not scatter.)
-    est = LeastSquaresEstimator(span="window", filter="bandpass", taps=101)
-    one, eight = mean_dev(est, dm, 0.01, 1), mean_dev(est, dm, 0.01, 8)
-    assert (eight < 0.8 * one).all()
