@@ -66,8 +66,8 @@ class ModelConfig:
 
 @dataclass
 class TrainerConfig:
-    max_steps: int = 1500
-    eval_every_n_steps: int = 100
+    max_steps: int = 6000
+    eval_every_n_steps: int = 200
     accelerator: str = "cpu"
     devices: Any = 1
     threads: Optional[int] = None
