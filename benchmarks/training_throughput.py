@@ -5,11 +5,12 @@ project's Trainer path (ParameterEstimator + QCMDataModule + lightning.Trainer),
 
 Both paths draw the same training batches from the same data module; validation is off in both, so the ratio
 measures what the framework adds to a step. The two paths alternate for --rounds rounds (the first round warms
-caches and the CPU) and the median rate of each is compared: single timings on this machine vary by +-15%.
-Reports steps per second and the ratio project / plain.
+caches and the CPU) and the median step time of each is compared: whole-run timings on this machine vary by
++-15%. Reports steps per second and the ratio project / plain.
 """
 
 import argparse
+import tempfile
 import time
 
 import lightning as L
@@ -17,10 +18,20 @@ import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
 
-from hybrid_sysid.train import CONF_DIR, build_datamodule, build_model
+from hybrid_sysid.train import CONF_DIR, build_datamodule, build_model, build_trainer
 
 
 def plain_loop(cfg, dm, steps):
+    # the same algorithms as the Trainer path: with trainer.deterministic, Lightning turns on torch's
+    # deterministic algorithms (about 5% slower on these cores); the plain loop gets them too
+    torch.use_deterministic_algorithms(bool(cfg.trainer.deterministic))
+    try:
+        return _plain_loop(cfg, dm, steps)
+    finally:
+        torch.use_deterministic_algorithms(False)
+
+
+def _plain_loop(cfg, dm, steps):
     L.seed_everything(cfg.seed)
     model = build_model(cfg)
     opt_cfg = model.configure_optimizers()
@@ -33,7 +44,7 @@ def plain_loop(cfg, dm, steps):
         opt.zero_grad(set_to_none=True)
         loss.backward()
         opt.step()
-    t0 = time.perf_counter()
+    stamps = [time.perf_counter()]
     for _ in range(steps):
         batch = next(it)
         loss = model.objective(model(batch["signals"]), batch)
@@ -42,36 +53,39 @@ def plain_loop(cfg, dm, steps):
         opt.step()
         if sched is not None:
             sched.step()
-    return steps / (time.perf_counter() - t0)
+        stamps.append(time.perf_counter())
+    return np.diff(stamps)
 
 
 class StepTimer(L.Callback):
+    """Time stamps at the start of every batch after the warm-up, and at the end of training."""
+
     def __init__(self, warmup=5):
-        self.warmup, self.t0, self.n = warmup, None, 0
+        self.warmup, self.stamps = warmup, []
 
     def on_train_batch_start(self, trainer, *args):
-        if trainer.global_step == self.warmup and self.t0 is None:
-            self.t0 = time.perf_counter()
+        if trainer.global_step >= self.warmup:
+            self.stamps.append(time.perf_counter())
 
     def on_train_end(self, trainer, *args):
-        self.rate = (trainer.global_step - self.warmup) / (time.perf_counter() - self.t0)
+        self.stamps.append(time.perf_counter())
 
 
 def trainer_path(cfg, dm, steps):
     L.seed_everything(cfg.seed)
     model = build_model(cfg)
     timer = StepTimer()
-    trainer = L.Trainer(max_steps=steps + timer.warmup, limit_val_batches=0, logger=False, enable_checkpointing=False,
-                        enable_progress_bar=bool(cfg.trainer.progress_bar), enable_model_summary=False,
-                        deterministic=cfg.trainer.deterministic, accelerator="cpu", devices=1, callbacks=[timer])
-    trainer.fit(model, datamodule=dm)
-    return timer.rate
+    with tempfile.TemporaryDirectory() as tmp:  # the run's own Trainer, minus validation and checkpoints
+        trainer = build_trainer(cfg, tmp, [timer], max_steps=steps + timer.warmup, limit_val_batches=0,
+                                enable_checkpointing=False)
+        trainer.fit(model, datamodule=dm)
+    return np.diff(timer.stamps)
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--steps", type=int, default=300)
-    ap.add_argument("--rounds", type=int, default=4)
+    ap.add_argument("--rounds", type=int, default=6)
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
@@ -80,16 +94,21 @@ def main():
     dm.setup("fit")
     print(f"torch threads: {torch.get_num_threads()}; model {cfg.model.net._target_}, batch {cfg.model.batch_size}, "
           f"window {cfg.data.window}, {args.steps} timed steps")
-    rates = {"plain loop": [], "project Trainer path": []}
+    # Per-step times, pooled over rounds; the median step is robust to the bursts of interference that move
+    # whole-run timings on this (virtual) machine by +-15%. The first round warms caches and is dropped.
+    steps_s = {"plain loop": [], "project Trainer path": []}
     for r in range(args.rounds):
         order = [("plain loop", plain_loop), ("project Trainer path", trainer_path)]
         for name, fn in (order if r % 2 == 0 else order[::-1]):
-            rates[name].append(fn(cfg, dm, args.steps))
-            print(f"round {r}: {name}: {rates[name][-1]:.2f} steps/s")
-    med = {name: float(np.median(v[1:] if len(v) > 1 else v)) for name, v in rates.items()}
+            dts = fn(cfg, dm, args.steps)
+            if r > 0:
+                steps_s[name].append(dts)
+            print(f"round {r}: {name}: {1 / np.median(dts):.2f} steps/s (median step), "
+                  f"{len(dts) / dts.sum():.2f} steps/s (whole run)")
+    med = {name: float(np.median(np.concatenate(v))) for name, v in steps_s.items()}
     for name, v in med.items():
-        print(f"{name}: median {v:.2f} steps/s (rounds after the first)")
-    print(f"ratio project / plain: {med['project Trainer path'] / med['plain loop']:.3f}")
+        print(f"{name}: median step {v * 1e3:.2f} ms = {1 / v:.2f} steps/s")
+    print(f"ratio project / plain (steps per second): {med['plain loop'] / med['project Trainer path']:.3f}")
 
 
 if __name__ == "__main__":

@@ -64,6 +64,22 @@ def build_model(cfg: DictConfig, curve_sets=()) -> ParameterEstimator:
                               warmup_fraction=o.get("warmup_fraction", 0.3), curve_sets=tuple(curve_sets))
 
 
+def build_trainer(cfg: DictConfig, run_dir, callbacks=(), **overrides) -> L.Trainer:
+    """The run's lightning.Trainer (benchmarks/training_throughput.py times this same one)."""
+    t = cfg.trainer
+    callbacks = list(callbacks)
+    if t.progress_bar:
+        # Lightning redraws the bar every step by default; every 10th step reads as well and costs less
+        callbacks.append(L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10))
+    kwargs = dict(
+        max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
+        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=False,
+        callbacks=callbacks, enable_progress_bar=t.progress_bar, enable_model_summary=False,
+        num_sanity_val_steps=0, default_root_dir=str(run_dir), **t.get("extra", {}))
+    kwargs.update(overrides)
+    return L.Trainer(**kwargs)
+
+
 def monitor_of(cfg: DictConfig, objective) -> str:
     """'auto' selects by the training objective on validation windows when it reads no labels (hybrid), so a
     label-free run stays label-free; by the labelled relative deviation otherwise."""
@@ -156,11 +172,7 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
 
     ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
                                                mode="min", save_last=True, auto_insert_metric_name=False)
-    trainer = L.Trainer(
-        max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
-        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=False,
-        callbacks=[ckpt], enable_progress_bar=t.progress_bar, enable_model_summary=False,
-        num_sanity_val_steps=0, default_root_dir=str(run_dir), **t.get("extra", {}))
+    trainer = build_trainer(cfg, run_dir, [ckpt])
     dm.setup("fit")
     last = run_dir / "checkpoints" / "last.ckpt"
     if last.exists():

@@ -76,7 +76,8 @@ class ParameterEstimator(L.LightningModule):
         if not torch.isfinite(loss):
             raise FloatingPointError(f"training loss is {loss.item()} at step {self.global_step}; "
                                      "lower model.optim.lr or check the data")
-        self.log("train/loss", loss, prog_bar=True, batch_size=len(batch["signals"]))
+        if self.global_step % 10 == 0:  # Lightning's self.log costs ~1.8 ms (7% of a fast_cnn step) per call
+            self.log("train/loss", loss, prog_bar=True, batch_size=len(batch["signals"]))
         return loss
 
     def on_validation_start(self):
