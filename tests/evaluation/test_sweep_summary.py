@@ -131,3 +131,19 @@ def test_bad_metric_and_empty_paths_raise_valueerror(sweep, tmp_path):
         summary_table(collect(sweep), metric="rmse")
     with pytest.raises(ValueError, match="hold no run"):
         write_summary(tmp_path)
+
+
+def test_merged_sweeps_fill_a_key_a_run_did_not_override_from_its_saved_config(tmp_path):
+    # sweep a varied data.measurement; sweep b left it at its default (consistent) and varied only objective.
+    # Merged, b's runs belong in the "consistent" rows, read from their .hydra/config.yaml, not a blank row.
+    for seed in (0, 1):
+        make_run(tmp_path / "a" / str(seed), ["objective=hybrid", "data.measurement=paper", f"seed={seed}"], seed,
+                 config={"data": {"measurement": "paper"}})
+        make_run(tmp_path / "b" / str(seed), ["objective=hybrid", f"seed={seed}"], seed,
+                 config={"data": {"measurement": "consistent"}})
+    make_run(tmp_path / "c" / "0", ["objective=labelled", "seed=0"], 0, hydra=False)  # no .hydra/: stays blank
+    df = collect([tmp_path / "a", tmp_path / "b", tmp_path / "c"])
+    labels = df.groupby("run")["data.measurement"].first().to_dict()
+    assert labels == {"a/0": "paper", "a/1": "paper", "b/0": "consistent", "b/1": "consistent", "c/0": ""}
+    objective = df.groupby("run")["objective"].first().to_dict()
+    assert objective["c/0"] == "labelled" and objective["b/1"] == "hybrid"

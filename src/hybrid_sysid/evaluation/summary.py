@@ -76,6 +76,21 @@ def _hydra_overrides(run_dir: Path) -> list[str]:
         return []
 
 
+def _default_of(run_dir: Path, key: str) -> str:
+    """What a run used for a key it did not override: its config-group choice (hydra.yaml) or its config
+    value (config.yaml), as Hydra saved them under .hydra/; "" when neither is there."""
+    try:
+        from omegaconf import OmegaConf
+
+        choices = OmegaConf.load(run_dir / ".hydra" / "hydra.yaml").hydra.runtime.choices
+        if key in choices:
+            return str(choices[key])
+        value = OmegaConf.select(OmegaConf.load(run_dir / ".hydra" / "config.yaml"), key)
+        return "" if value is None else str(value)
+    except Exception:  # noqa: BLE001 - best effort: a run without .hydra/ keeps the blank label
+        return ""
+
+
 def _rows_of(run_dir: Path, name: str) -> list[dict]:
     try:
         rec = json.loads((run_dir / RECORD).read_text())
@@ -100,7 +115,14 @@ def _collect(root: Path, runs: list[Path]) -> pd.DataFrame:
     df = pd.DataFrame(rows, columns=None if rows else HEAD + TAIL)
     keys = [c for c in df.columns if c not in HEAD + TAIL]  # first-seen order across runs
     df = df.reindex(columns=HEAD + keys + TAIL)
-    df[keys] = df[keys].fillna("").astype(str)  # a run without a key ran with that key's default
+    df[keys] = df[keys].fillna("").astype(str)
+    # a run without a key ran with that key's default: read it from the run's saved config, so sweeps merged
+    # with other sweeps land in the right rows ("" only when the run dir has no .hydra/)
+    by_name = {run.relative_to(root).as_posix(): run for run in runs}
+    for key in keys:
+        blank = df[key] == ""
+        for name in df.loc[blank, "run"].unique():
+            df.loc[blank & (df.run == name), key] = _default_of(by_name[name], key)
     for col in ("seed", "windows", "n", "steps"):
         df[col] = pd.to_numeric(df[col], errors="coerce").round().astype("Int64")  # NaN-safe, writes "1" not "1.0"
     for col in ("noise_std", "mean_rel_dev", "std_rel_dev", "train_seconds"):
