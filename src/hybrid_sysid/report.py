@@ -38,6 +38,9 @@ def parse_args(argv=None) -> argparse.Namespace:
     p.add_argument("--reproduction", action="store_true",
                    help="also write reproduction.md: the paper's figures beside ours, protocol and reading "
                    "(with --results: a section per PATH in the page)")
+    p.add_argument("--notes", type=Path, default=None, metavar="MD",
+                   help="with --results: a hand-written markdown file (the reading of the tables) placed after "
+                   "the page's header")
     p.add_argument("--results", type=Path, default=None, metavar="FILE",
                    help="write a results page (one section per PATH: table, figure in FILE's folder/figures/) "
                    "instead of the summary files, which are still written when --out is given")
@@ -53,6 +56,9 @@ def main(argv=None) -> int:
         if not find_runs([path]):
             print(f"{PROG}: error: no runs ({RECORD}) under {path}", file=sys.stderr)
             return 2
+    if args.notes is not None and not args.notes.is_file():
+        print(f"{PROG}: error: --notes file does not exist: {args.notes}", file=sys.stderr)
+        return 2
     bad = 0
     try:
         if args.results is None or args.out is not None:
@@ -77,10 +83,11 @@ def main(argv=None) -> int:
                                 shlex.quote(str(args.results))] + ["--reproduction"] * args.reproduction
                                + ([f"--compare {args.compare}"] if args.compare else [])
                                + ([f"--split {args.split}"] if args.split != "test" else [])
-                               + ([f"--metric {args.metric}"] if args.metric != "mean_rel_dev" else []))
+                               + ([f"--metric {args.metric}"] if args.metric != "mean_rel_dev" else [])
+                               + ([f"--notes {shlex.quote(str(args.notes))}"] if args.notes else []))
             text, n, bad_results = write_results(args.results, args.paths, split=args.split, metric=args.metric,
                                                  compare=args.compare, reproduction=args.reproduction,
-                                                 command=command)
+                                                 command=command, notes=args.notes)
             print(text, end="")
             bad = max(bad, bad_results)
             print(f"{n} runs, {bad_results} failed or unreadable; wrote {args.results} and "

@@ -185,6 +185,23 @@ def test_cli_results_page_one_section_per_sweep_with_figures(tmp_path, capsys):
     assert (tmp_path / "o" / "summary.md").is_file() and (tmp_path / "o" / "reproduction.md").is_file()
 
 
+def test_cli_results_page_places_the_notes_after_the_header(tmp_path, capsys):
+    paper = _make(tmp_path / "paper_sweep")
+    notes = tmp_path / "reading.md"
+    notes.write_text("## Reading\n\nHybrid is not more robust here.\n")
+    page = tmp_path / "docs" / "results.md"
+    assert main([str(paper), "--results", str(page), "--notes", str(notes)]) == 0
+    text = page.read_text()
+    assert text.index("Generated from the run records") < text.index("## Reading") < text.index("## experiment=paper")
+    assert f"--notes {notes}" in text  # the regeneration command keeps the notes
+    missing = tmp_path / "none.md"
+    page.unlink()
+    capsys.readouterr()
+    assert main([str(paper), "--results", str(page), "--notes", str(missing)]) == 2
+    assert f"--notes file does not exist: {missing}" in capsys.readouterr().err
+    assert not page.exists()  # nothing written
+
+
 def test_callback_writes_reproduction_when_asked(tmp_path, capsys):
     from hybrid_sysid.callbacks import SweepSummary
 

@@ -37,9 +37,11 @@ def _slug(text: str) -> str:
 
 
 def write_results(file, paths, split: str = "test", metric: str = "mean_rel_dev", compare: str | None = None,
-                  reproduction: bool = False, command: str | None = None) -> tuple[str, int, int]:
+                  reproduction: bool = False, command: str | None = None,
+                  notes=None) -> tuple[str, int, int]:
     """Write the page and its figures (file's folder / figures / <section>.png); returns (text, number of runs,
-    number of failed or unreadable runs). ``command`` is quoted in the header as the way to regenerate the page."""
+    number of failed or unreadable runs). ``command`` is quoted in the header as the way to regenerate the page;
+    ``notes``, a markdown file (the hand-written reading of the tables), is placed right after the header."""
     file = Path(file)
     figures = file.parent / "figures"
     paths = [Path(p) for p in paths]
@@ -49,6 +51,8 @@ def write_results(file, paths, split: str = "test", metric: str = "mean_rel_dev"
              f"Generated from the run records by `{command}`; run it again to regenerate this page (and "
              f"`{figures.name}/`), do not edit by hand. Cells: {METRICS[metric]} on the {split} split, percent, "
              "mean ± sample standard deviation (ddof=1) over seeds.", ""]
+    if notes is not None:  # read first: a missing file fails before anything is written
+        lines += [f"<!-- from {Path(notes).as_posix()} -->", Path(notes).read_text(encoding="utf-8").strip(), ""]
     n_all, n_bad, used = 0, 0, set()
     for path in paths:
         root, runs = _resolve([path])
