@@ -104,5 +104,6 @@ def protocol(df: pd.DataFrame, root: Path) -> dict[str, str]:
 
 def one_line(p: dict[str, str]) -> str:
     """A compact protocol sentence for a results page."""
-    keys = ["model", "optimiser", "steps", "seeds", "data", "dt", "measurement", "test noise std"]
+    keys = ["model", "optimiser", "steps", "seeds", "data", "dt", "measurement", "training noise std",
+            "test noise std"]
     return "; ".join(f"{k} {p[k]}" for k in keys if k in p) + "."

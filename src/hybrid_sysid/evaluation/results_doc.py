@@ -28,12 +28,15 @@ def _title(df: pd.DataFrame, path: Path) -> str:
     if "experiment" in df:
         values = set(df.drop_duplicates("run").experiment)
         if len(values) == 1 and "" not in values:
-            return f"experiment={values.pop()}"
+            name = values.pop()
+            # two sweeps of one experiment (e.g. ablations with other overrides) keep apart by their dir names
+            return f"experiment={name}" + ("" if path.resolve().name == name else f" ({path.resolve().name})")
     return path.resolve().name
 
 
 def _slug(text: str) -> str:
-    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text.removeprefix("experiment=")).strip("_") or "sweep"
+    text = text.removeprefix("experiment=").split(" (")[0]  # the experiment's name, without the dir suffix
+    return re.sub(r"[^A-Za-z0-9_.-]+", "_", text).strip("_") or "sweep"
 
 
 def write_results(file, paths, split: str = "test", metric: str = "mean_rel_dev", compare: str | None = None,

@@ -1,0 +1,14 @@
+#!/usr/bin/env bash
+# Re-run every sweep behind docs/results.md (about 75 minutes on two CPU cores), then regenerate the page.
+# With the sweeps already on disk, only the last command is needed.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+out=outputs/multirun
+hybrid-sysid experiment=robustness hydra.sweep.dir=$out/robustness
+hybrid-sysid experiment=best hydra.sweep.dir=$out/best
+hybrid-sysid experiment=ablations data.measurement=paper noise.train_std=0.0 hydra.sweep.dir=$out/ablations_measurement
+hybrid-sysid experiment=ablations data.measurement=consistent noise.train_std=0.01 hydra.sweep.dir=$out/ablations_trainnoise
+hybrid-sysid experiment=baselines hydra.sweep.dir=$out/baselines
+hybrid-sysid experiment=paper hydra.sweep.dir=$out/paper
+hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
+  $out/paper --results docs/results.md --notes docs/results_notes.md --reproduction
