@@ -18,12 +18,12 @@ import time
 import numpy as np
 
 from hybrid_sysid.baselines.filters import _fmt, bandpass_taps, check_bandpass, fir_valid
+from hybrid_sysid.data.datamodule import SPLITS  # the split codes that seed the evaluation noise
 from hybrid_sysid.physics import relative_states
 
 SPANS = ("window", "series")
 FILTERS = ("none", "bandpass")
 _SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
-_SPLITS = ("train", "val", "test")  # the data module's split codes (data.datamodule.SPLITS)
 
 
 def lstsq_rows(a: np.ndarray, b: np.ndarray, y: np.ndarray) -> np.ndarray:
@@ -121,7 +121,7 @@ class LeastSquaresEstimator:
     def _series(self, dm, split, noise_std, limit):
         ds, rows = dm.dataset, dm.rows(split)
         rows = rows if limit is None else rows[:limit]
-        code = _SPLITS.index(split)
+        code = SPLITS.index(split)
         preds = []
         for c in range(0, len(rows), _SERIES_CHUNK):
             r = rows[c:c + _SERIES_CHUNK]

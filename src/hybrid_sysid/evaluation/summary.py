@@ -77,18 +77,13 @@ def _hydra_overrides(run_dir: Path) -> list[str]:
 
 
 def _default_of(run_dir: Path, key: str) -> str:
-    """What a run used for a key it did not override: its config-group choice (hydra.yaml) or its config
-    value (config.yaml), as Hydra saved them under .hydra/; "" when neither is there."""
-    try:
-        from omegaconf import OmegaConf
+    """What a run used for a key it did not override: its config-group choice or its config value, as Hydra
+    saved them under .hydra/; "" when neither is there."""
+    from hybrid_sysid.evaluation.protocol import _get, run_choices, run_config
 
-        choices = OmegaConf.load(run_dir / ".hydra" / "hydra.yaml").hydra.runtime.choices
-        if key in choices:
-            return str(choices[key])
-        value = OmegaConf.select(OmegaConf.load(run_dir / ".hydra" / "config.yaml"), key)
-        return "" if value is None else str(value)
-    except Exception:  # noqa: BLE001 - best effort: a run without .hydra/ keeps the blank label
-        return ""
+    choices = run_choices(run_dir)
+    value = choices[key] if key in choices else _get(run_config(run_dir), key)
+    return "" if value is None else str(value)
 
 
 def _rows_of(run_dir: Path, name: str) -> list[dict]:
