@@ -1,12 +1,13 @@
 """Training throughput: the same model, batches and steps through a plain PyTorch loop and through the
 project's Trainer path (ParameterEstimator + QCMDataModule + lightning.Trainer), timed in one script.
 
-    python benchmarks/training_throughput.py [--steps 300] [overrides...]
+    python benchmarks/training_throughput.py [--steps 60] [--rounds 20] [overrides...]
 
 Both paths draw the same training batches from the same data module; validation is off in both, so the ratio
-measures what the framework adds to a step. The two paths alternate for --rounds rounds (the first round warms
-caches and the CPU) and the median step time of each is compared: whole-run timings on this machine vary by
-+-15%. Reports steps per second and the ratio project / plain.
+measures what the framework adds to a step. The two paths run back to back, in alternating order, for --rounds
+short rounds (after one warm-up round); each round gives a ratio of median step times, and the median of those
+ratios is reported with its interquartile range: this machine's speed drifts by +-15% within a minute, which
+pooled timings of long runs mistake for a difference between the paths.
 """
 
 import argparse
@@ -84,8 +85,8 @@ def trainer_path(cfg, dm, steps):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--steps", type=int, default=300)
-    ap.add_argument("--rounds", type=int, default=6)
+    ap.add_argument("--steps", type=int, default=60, help="timed steps per run")
+    ap.add_argument("--rounds", type=int, default=20)
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args()
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
@@ -93,22 +94,31 @@ def main():
     dm = build_datamodule(cfg)
     dm.setup("fit")
     print(f"torch threads: {torch.get_num_threads()}; model {cfg.model.net._target_}, batch {cfg.model.batch_size}, "
-          f"window {cfg.data.window}, {args.steps} timed steps")
-    # Per-step times, pooled over rounds; the median step is robust to the bursts of interference that move
-    # whole-run timings on this (virtual) machine by +-15%. The first round warms caches and is dropped.
-    steps_s = {"plain loop": [], "project Trainer path": []}
-    for r in range(args.rounds):
-        order = [("plain loop", plain_loop), ("project Trainer path", trainer_path)]
+          f"window {cfg.data.window}, {args.steps} timed steps x {args.rounds} rounds per path")
+    # This machine's speed drifts by up to +-15% within a minute, so pooled timings of long runs compare
+    # whatever state each run happened to meet. Instead: many short runs, the two paths back to back in
+    # alternating order, a ratio per round (median step of each), and the median of those ratios.
+    names = ("plain loop", "project Trainer path")
+    steps_s = {name: [] for name in names}
+    ratios = []
+    for r in range(-1, args.rounds):  # round -1 warms caches and the CPU and is dropped
+        order = [(names[0], plain_loop), (names[1], trainer_path)]
+        med = {}
         for name, fn in (order if r % 2 == 0 else order[::-1]):
             dts = fn(cfg, dm, args.steps)
-            if r > 0:
+            med[name] = float(np.median(dts))
+            if r >= 0:
                 steps_s[name].append(dts)
-            print(f"round {r}: {name}: {1 / np.median(dts):.2f} steps/s (median step), "
-                  f"{len(dts) / dts.sum():.2f} steps/s (whole run)")
-    med = {name: float(np.median(np.concatenate(v))) for name, v in steps_s.items()}
-    for name, v in med.items():
-        print(f"{name}: median step {v * 1e3:.2f} ms = {1 / v:.2f} steps/s")
-    print(f"ratio project / plain (steps per second): {med['plain loop'] / med['project Trainer path']:.3f}")
+        if r >= 0:
+            ratios.append(med[names[0]] / med[names[1]])
+            print(f"round {r}: plain {1 / med[names[0]]:.1f} steps/s, project {1 / med[names[1]]:.1f} steps/s, "
+                  f"ratio {ratios[-1]:.3f}", flush=True)
+    for name in names:
+        v = float(np.median(np.concatenate(steps_s[name])))
+        print(f"{name}: median step {v * 1e3:.2f} ms = {1 / v:.2f} steps/s (pooled over rounds)")
+    q1, q2, q3 = np.percentile(ratios, [25, 50, 75])
+    print(f"ratio project / plain (steps per second): median of {len(ratios)} paired rounds {q2:.3f} "
+          f"(interquartile {q1:.3f} to {q3:.3f})")
 
 
 if __name__ == "__main__":
