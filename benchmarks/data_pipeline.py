@@ -85,7 +85,8 @@ def main():
 
     it = iter(dm.train_dataloader())
     next(it)
-    print(f"whole training batch from the loader (draw, crop, dict): {median_us(lambda: next(it), args.batches):.0f} us")
+    us = median_us(lambda: next(it), args.batches)
+    print(f"whole training batch from the loader (draw, crop, dict): {us:.0f} us")
     shared = all(np.shares_memory(v, a) for v, a in zip(views, arrays))
     print(f"window views share the dataset's memory: {shared}; train loader workers: "
           f"{dm.train_dataloader().num_workers}")
