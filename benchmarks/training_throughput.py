@@ -1,13 +1,15 @@
 """Training throughput: the same model, batches and steps through a plain PyTorch loop and through the
 project's Trainer path (ParameterEstimator + QCMDataModule + lightning.Trainer), timed in one script.
 
-    python benchmarks/training_throughput.py [--steps 60] [--rounds 20] [overrides...]
+    python benchmarks/training_throughput.py [--steps 60] [--rounds 20] [--tiny] [overrides...]
 
 Both paths draw the same training batches from the same data module; validation is off in both, so the ratio
 measures what the framework adds to a step. The two paths run back to back, in alternating order, for --rounds
 short rounds (after one warm-up round); each round gives a ratio of median step times, and the median of those
 ratios is reported with its interquartile range: this machine's speed drifts by +-15% within a minute, which
 pooled timings of long runs mistake for a difference between the paths.
+With --tiny the network is a 2 -> 2 linear map of the window's mean: the step is then almost all framework and
+data, so the difference between the paths is the Trainer path's fixed cost per step.
 """
 
 import argparse
@@ -18,8 +20,27 @@ import lightning as L
 import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
+from hydra.utils import instantiate
 
+from hybrid_sysid.model.module import ParameterEstimator
 from hybrid_sysid.train import CONF_DIR, build_datamodule, build_model, build_trainer
+
+
+class TinyNet(torch.nn.Module):
+    def __init__(self):
+        super().__init__()
+        self.linear = torch.nn.Linear(2, 2)
+
+    def forward(self, signals):
+        return self.linear(signals.mean(-1))
+
+
+def tiny_model(cfg):
+    return ParameterEstimator(TinyNet(), instantiate(cfg.objective, _convert_="all"),
+                              max_steps=cfg.trainer.max_steps)
+
+
+MAKE_MODEL = [build_model]  # or tiny_model with --tiny
 
 
 def plain_loop(cfg, dm, steps):
@@ -34,7 +55,7 @@ def plain_loop(cfg, dm, steps):
 
 def _plain_loop(cfg, dm, steps):
     L.seed_everything(cfg.seed)
-    model = build_model(cfg)
+    model = MAKE_MODEL[0](cfg)
     opt_cfg = model.configure_optimizers()
     opt, sched = (opt_cfg["optimizer"], opt_cfg["lr_scheduler"]["scheduler"]) if isinstance(opt_cfg, dict) else (opt_cfg, None)
     model.train()
@@ -74,7 +95,7 @@ class StepTimer(L.Callback):
 
 def trainer_path(cfg, dm, steps):
     L.seed_everything(cfg.seed)
-    model = build_model(cfg)
+    model = MAKE_MODEL[0](cfg)
     timer = StepTimer()
     with tempfile.TemporaryDirectory() as tmp:  # the run's own Trainer, minus validation and checkpoints
         trainer = build_trainer(cfg, tmp, [timer], max_steps=steps + timer.warmup, limit_val_batches=0,
@@ -87,13 +108,17 @@ def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--steps", type=int, default=60, help="timed steps per run")
     ap.add_argument("--rounds", type=int, default=20)
+    ap.add_argument("--tiny", action="store_true", help="a 2 -> 2 linear network: the framework's fixed cost")
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args()
+    if args.tiny:
+        MAKE_MODEL[0] = tiny_model
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
         cfg = compose(config_name="config", overrides=["trainer.progress_bar=true", *args.overrides])
     dm = build_datamodule(cfg)
     dm.setup("fit")
-    print(f"torch threads: {torch.get_num_threads()}; model {cfg.model.net._target_}, batch {cfg.model.batch_size}, "
+    net = "TinyNet (--tiny)" if args.tiny else cfg.model.net._target_
+    print(f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
           f"window {cfg.data.window}, {args.steps} timed steps x {args.rounds} rounds per path")
     # This machine's speed drifts by up to +-15% within a minute, so pooled timings of long runs compare
     # whatever state each run happened to meet. Instead: many short runs, the two paths back to back in
