@@ -27,15 +27,27 @@ def test_fused_kernel_equals_numpy_path(measurement):
 
 
 @pytest.mark.parametrize("measurement", ["paper", "consistent"])
-def test_fused_kernel_odd_count_and_any_road_order(measurement):
-    # recordings run in pairs: an odd count and roads in any order must still give each recording its own
-    # road and mass, equal to the numpy path op for op (float64, exactly)
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+@pytest.mark.parametrize("n_rec, n_steps", [(7, 300), (37, 261), (32, 8), (1, 5)])
+def test_fused_kernel_any_count_length_and_road_order(measurement, dtype, n_rec, n_steps):
+    # recordings run in blocks of fused.LANES and tiles of fused.STEPS steps written eight at a time: counts
+    # and lengths that leave partial blocks, partial tiles and tails shorter than eight, and roads in any
+    # order, must still give each recording its own road and mass, equal to the numpy path op for op
     dt = 0.005
-    roads = road_profiles(list("ACE"), 300, dt, 15.0, rng=3)
-    road_of = np.array([2, 0, 1, 1, 2, 0, 2])
-    m3 = np.array([50.0, 70.0, 90.0, 110.0, 150.0, 180.0, 200.0])
-    out = tuple(np.empty((7, 300)) for _ in range(4))
+    roads = road_profiles(list("ACE"), n_steps, dt, 15.0, rng=3)
+    rng = np.random.default_rng(n_rec)
+    road_of = rng.integers(0, 3, size=n_rec)
+    m3 = rng.uniform(50.0, 200.0, size=n_rec)
+    out = tuple(np.full((n_rec, n_steps), np.nan, dtype=dtype) for _ in range(4))
     fused.simulate_recordings(roads, road_of, m3, dt, QuarterCar(), measurement, out=out)
     seat, body = simulate(roads[road_of], m3, dt, QuarterCar(), measurement)
     for got, want in zip(out, (seat, body, *relative_states(seat, body, dt, measurement))):
-        np.testing.assert_array_equal(got, want)
+        np.testing.assert_array_equal(got, want.astype(dtype))
+
+
+def test_fused_kernel_rejects_unusable_output_arrays():
+    roads = road_profiles(["A"], 40, 0.005, 15.0, rng=3)
+    good = [np.empty((2, 40), np.float32) for _ in range(4)]
+    for bad in (np.empty((2, 40), np.float64), np.empty((2, 39), np.float32), np.empty((2, 80), np.float32)[:, ::2]):
+        with pytest.raises(ValueError, match="out must be four C-contiguous float32 or float64 arrays"):
+            fused.simulate_recordings(roads, [0, 0], [60.0, 90.0], 0.005, out=[*good[:3], bad])
