@@ -6,6 +6,7 @@ Phi(w) = Phi(w0) (w / w0)^-2, Phi(w0) = 2^k 1e-6 (k = 0, 2, ..., 8 for classes A
 
 from __future__ import annotations
 
+from concurrent.futures import ThreadPoolExecutor
 from typing import Sequence
 
 import numpy as np
@@ -81,7 +82,10 @@ def road_profiles(
     scale = np.array([2.0 ** (_CLASS_EXPONENT[c] / 2) for c in classes])
     s = speed * dt * np.arange(n_steps)
     arg = np.outer(s, wave_numbers(n_waves))  # (steps, waves)
-    sin_basis, cos_basis = np.sin(arg), np.cos(arg)
+    with ThreadPoolExecutor(1) as pool:  # numpy releases the GIL: sin on a second core while cos runs here
+        sin_job = pool.submit(np.sin, arg)
+        cos_basis = np.cos(arg)
+        sin_basis = sin_job.result()
     coef_sin = base * np.cos(phases)  # (roads, waves)
     coef_cos = base * np.sin(phases)
     road = coef_sin @ sin_basis.T - coef_cos @ cos_basis.T
