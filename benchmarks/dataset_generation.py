@@ -8,6 +8,10 @@ sin evaluation over (roads, waves, steps); the eq.-11 loop over time vectorised 
 re-integration by np.cumsum). The project's path: roads from one shared sine basis and two matrix products,
 then the compiled fused kernel (physics.fused). Both are compared for equality in float64 (1e-12 relative).
 Peak memory is measured in a fresh subprocess running the project's generate_dataset alone.
+The fast path is timed first in this process (cold: the first ~1 GB this process asks of the OS) and then
+--repeats more times (warm: the OS hands back memory this process freed); the reference once. How much of the
+cold figure is the OS is measured apart, in another fresh process: four empty float32 arrays of the dataset's
+size allocated and filled in parallel, first and second time (no project code).
 --scaling also times the fast path against the number of recordings and of steps and draws a plot.
 """
 
@@ -54,6 +58,28 @@ def fast(spec, classes, masses, rng_seed, dtype=np.float32):
     fused.simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(),
                               spec.dt, QuarterCar(), spec.measurement, out=out)
     return out, t_roads, time.perf_counter() - t0
+
+
+def allocation_floor(spec, rounds=3):
+    """Seconds to allocate and fill (in parallel, as the kernel writes) four float32 arrays of the dataset's
+    size, `rounds` times in this process: the first time includes the OS finding the memory."""
+    import numba
+
+    @numba.njit(parallel=True)
+    def fill(a, b, c, d):
+        for i in numba.prange(a.shape[0]):
+            for k in range(a.shape[1]):
+                a[i, k], b[i, k], c[i, k], d[i, k] = 1.0, 2.0, 3.0, 4.0
+
+    fill(*(np.empty((2, 2), np.float32) for _ in range(4)))  # compile
+    times = []
+    for _ in range(rounds):
+        t0 = time.perf_counter()
+        out = tuple(np.empty((spec.n_roads * spec.n_masses, spec.n_steps), np.float32) for _ in range(4))
+        fill(*out)
+        times.append(time.perf_counter() - t0)
+        del out
+    return times
 
 
 def rel_diff(a, b) -> float:
@@ -104,7 +130,9 @@ def main():
     ap.add_argument("--dt", type=float, default=0.001)
     ap.add_argument("--scaling", action="store_true")
     ap.add_argument("--scaling-only", action="store_true", help="only the scaling plot")
+    ap.add_argument("--repeats", type=int, default=5, help="warm timings of the fast path (median reported)")
     ap.add_argument("--peak-only", action="store_true", help=argparse.SUPPRESS)
+    ap.add_argument("--alloc-only", action="store_true", help=argparse.SUPPRESS)
     args = ap.parse_args()
     spec = DatasetSpec(n_roads=args.roads, n_masses=args.masses, n_steps=args.steps, dt=args.dt)
 
@@ -113,6 +141,10 @@ def main():
         png = Path(__file__).parent / "dataset_generation_scaling.png"
         scaling(png)
         print(f"scaling plot: {png}")
+        return
+
+    if args.alloc_only:  # run in a fresh process: what the OS costs for the output, with no project code
+        print(*(f"{t:.3f}" for t in allocation_floor(spec)))
         return
 
     if args.peak_only:  # run in a fresh process: the project's generate_dataset alone
@@ -127,9 +159,11 @@ def main():
 
     # First, while this process is small: a forked child's peak RSS starts from the parent's resident size
     # (fork copies the address space before exec), which after the reference run is several GiB.
-    peak = subprocess.run([sys.executable, __file__, "--peak-only", "--roads", str(args.roads), "--masses",
-                           str(args.masses), "--steps", str(args.steps), "--dt", str(args.dt)],
+    size = ["--roads", str(args.roads), "--masses", str(args.masses), "--steps", str(args.steps), "--dt", str(args.dt)]
+    peak = subprocess.run([sys.executable, __file__, "--peak-only", *size],
                           capture_output=True, text=True, check=True).stdout.split()
+    alloc = subprocess.run([sys.executable, __file__, "--alloc-only", *size],
+                           capture_output=True, text=True, check=True).stdout.split()
     rng = np.random.default_rng(0)
     classes = list(rng.choice(list("ABCDE"), size=spec.n_roads))
     masses = rng.integers(50, 201, size=(spec.n_roads, spec.n_masses)).astype(float)
@@ -137,8 +171,14 @@ def main():
 
     fast(DatasetSpec(n_roads=2, n_masses=2, n_steps=10), ["A", "A"], np.full((2, 2), 60.0), 1)  # compile once
     fast(DatasetSpec(n_roads=2, n_masses=2, n_steps=10), ["A", "A"], np.full((2, 2), 60.0), 1, np.float64)
-    fast_out, fast_roads, fast_total = fast(spec, classes, masses, 1)
+    fast_out, cold_roads, cold_total = fast(spec, classes, masses, 1)
     del fast_out
+    warm = []
+    for _ in range(args.repeats):
+        fast_out, t_roads, t_total = fast(spec, classes, masses, 1)
+        del fast_out
+        warm.append((t_total, t_roads))
+    fast_total, fast_roads = sorted(warm)[len(warm) // 2]  # the median run (odd --repeats: exactly)
     ref_out, ref_roads, ref_total = reference(spec, classes, masses, phases)
     fast64, _, _ = fast(spec, classes, masses, 1, np.float64)
     worst = [rel_diff(a, b) for a, b in zip(fast64, ref_out)]
@@ -156,13 +196,18 @@ def main():
     floor = [rel_diff(a, b) for a, b in zip(kernel64(spec, ulp, masses), base)]
     del base
 
-    print(f"dataset {spec.n_roads} roads x {spec.n_masses} masses x {spec.n_steps} steps, dt {spec.dt} s")
+    print(f"dataset {spec.n_roads} roads x {spec.n_masses} masses x {spec.n_steps} steps, dt {spec.dt} s; "
+          f"project: median of {len(warm)} warm runs ({' / '.join(f'{t:.3f}' for t, _ in warm)} s)")
     print("| stage | reference (numpy) | project | speed-up |")
     print("| --- | ---: | ---: | ---: |")
     print(f"| roads | {ref_roads:.3f} s | {fast_roads:.3f} s | {ref_roads / fast_roads:.0f}x |")
     print(f"| simulation + re-integration | {ref_total - ref_roads:.3f} s | {fast_total - fast_roads:.3f} s | "
           f"{(ref_total - ref_roads) / (fast_total - fast_roads):.0f}x |")
     print(f"| total | {ref_total:.3f} s | {fast_total:.3f} s | {ref_total / fast_total:.0f}x |")
+    print(f"| total, project's first run in this process (cold) | | {cold_total:.3f} s | "
+          f"{ref_total / cold_total:.0f}x |")
+    print(f"OS floor, fresh process, four float32 arrays of the dataset's size allocated + filled in parallel: "
+          f"first {float(alloc[0]):.3f} s, second {float(alloc[1]):.3f} s, third {float(alloc[2]):.3f} s")
     names = ("seat acc", "body acc", "rel. velocity", "rel. displacement")
     print("float64 max |project - reference| / max |reference|, per channel:")
     print("| channel | end to end | same roads (kernel vs numpy loop) | 1-ulp road perturbation (floor) |")
