@@ -1,13 +1,19 @@
 """Training throughput: the same model, batches and steps through a plain PyTorch loop and through the
 project's Trainer path (ParameterEstimator + QCMDataModule + lightning.Trainer), timed in one script.
 
-    python benchmarks/training_throughput.py [--steps 60] [--rounds 20] [--tiny] [overrides...]
+    python benchmarks/training_throughput.py [--steps 600] [--tiny] [overrides...]               # interleaved
+    python benchmarks/training_throughput.py --rounds 20 [--steps 60] [--tiny] [overrides...]    # rounds
 
 Both paths draw the same training batches from the same data module; validation is off in both, so the ratio
-measures what the framework adds to a step. The two paths run back to back, in alternating order, for --rounds
-short rounds (after one warm-up round); each round gives a ratio of median step times, and the median of those
-ratios is reported with its interquartile range: this machine's speed drifts by +-15% within a minute, which
-pooled timings of long runs mistake for a difference between the paths.
+measures what the framework adds to a step. This machine's speed drifts by +-15% within a minute, so the two
+paths are timed close together:
+- interleaved (default): one Trainer run of --steps steps; after each of its steps a callback runs one step of
+  the plain loop (its own model, optimiser and batch iterator). A Trainer step is the time from one batch start
+  to the next less the plain step run in between (Lightning's hooks, our callback's dispatch included), so
+  each pair of steps is 20-50 ms apart. Reported: the ratio of median step times and the median of the
+  per-pair ratios with its interquartile range.
+- --rounds N: the two paths back to back in alternating order, N short rounds of --steps steps (after one
+  warm-up round); each round gives a ratio of median step times, and the median of those ratios is reported.
 With --tiny the network is a 2 -> 2 linear map of the window's mean: the step is then almost all framework and
 data, so the difference between the paths is the Trainer path's fixed cost per step.
 """
@@ -93,6 +99,62 @@ class StepTimer(L.Callback):
         self.stamps.append(time.perf_counter())
 
 
+class Interleaved(L.Callback):
+    """After every Trainer step, one plain-loop step; both timed (see the module's docstring)."""
+
+    def __init__(self, plain_step, warmup=5):
+        self.plain_step, self.warmup = plain_step, warmup
+        self.starts, self.plain = [], []
+
+    def on_train_batch_start(self, trainer, *args):
+        if trainer.global_step >= self.warmup:
+            self.starts.append(time.perf_counter())
+
+    def on_train_batch_end(self, trainer, *args):
+        t0 = time.perf_counter()
+        self.plain_step()
+        if trainer.global_step > self.warmup:  # global_step has counted this step already
+            self.plain.append(time.perf_counter() - t0)
+
+    def on_train_end(self, trainer, *args):
+        self.starts.append(time.perf_counter())
+
+
+def plain_stepper(cfg, dm):
+    """One plain-loop step per call: the same model, optimiser, schedule and batches as plain_loop."""
+    L.seed_everything(cfg.seed)
+    model = MAKE_MODEL[0](cfg)
+    opt_cfg = model.configure_optimizers()
+    opt, sched = (opt_cfg["optimizer"], opt_cfg["lr_scheduler"]["scheduler"]) if isinstance(opt_cfg, dict) else (opt_cfg, None)
+    model.train()
+    it = iter(dm.train_dataloader())
+
+    def step():
+        batch = next(it)
+        loss = model.objective(model(batch["signals"]), batch)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        opt.step()
+        if sched is not None:
+            sched.step()
+    return step
+
+
+def interleaved(cfg, dm, steps):
+    """(plain step times, Trainer step times), pair by pair."""
+    callback = Interleaved(plain_stepper(cfg, dm))
+    L.seed_everything(cfg.seed)
+    model = MAKE_MODEL[0](cfg)
+    with tempfile.TemporaryDirectory() as tmp:
+        trainer = build_trainer(cfg, tmp, [callback], max_steps=steps + callback.warmup, limit_val_batches=0,
+                                enable_checkpointing=False)
+        trainer.fit(model, datamodule=dm)
+    plain = np.array(callback.plain)
+    # from one batch start to the next, less the plain step our callback ran in between
+    project = np.diff(callback.starts)[:len(plain)] - plain
+    return plain, project
+
+
 def trainer_path(cfg, dm, steps):
     L.seed_everything(cfg.seed)
     model = MAKE_MODEL[0](cfg)
@@ -106,8 +168,9 @@ def trainer_path(cfg, dm, steps):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--steps", type=int, default=60, help="timed steps per run")
-    ap.add_argument("--rounds", type=int, default=20)
+    ap.add_argument("--steps", type=int, default=None,
+                    help="timed steps: per run (default 600 interleaved, 60 a round with --rounds)")
+    ap.add_argument("--rounds", type=int, default=0, help="time back-to-back rounds instead of interleaving")
     ap.add_argument("--tiny", action="store_true", help="a 2 -> 2 linear network: the framework's fixed cost")
     ap.add_argument("overrides", nargs="*")
     args = ap.parse_args()
@@ -118,6 +181,22 @@ def main():
     dm = build_datamodule(cfg)
     dm.setup("fit")
     net = "TinyNet (--tiny)" if args.tiny else cfg.model.net._target_
+    if not args.rounds:
+        args.steps = args.steps or 600
+        print(f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
+              f"window {cfg.data.window}, {args.steps} interleaved pairs of steps")
+        plain_loop(cfg, dm, 20)  # warm-up of caches and the CPU
+        torch.use_deterministic_algorithms(bool(cfg.trainer.deterministic))  # as the Trainer will
+        plain, project = interleaved(cfg, dm, args.steps)
+        torch.use_deterministic_algorithms(False)
+        pm, jm = float(np.median(plain)), float(np.median(project))
+        print(f"plain loop: median step {pm * 1e3:.2f} ms = {1 / pm:.2f} steps/s")
+        print(f"project Trainer path: median step {jm * 1e3:.2f} ms = {1 / jm:.2f} steps/s")
+        q1, q2, q3 = np.percentile(plain / project, [25, 50, 75])
+        print(f"ratio project / plain (steps per second): {pm / jm:.3f} (ratio of medians); per pair: median "
+              f"{q2:.3f} (interquartile {q1:.3f} to {q3:.3f}); difference of medians {(jm - pm) * 1e3:.2f} ms")
+        return
+    args.steps = args.steps or 60
     print(f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
           f"window {cfg.data.window}, {args.steps} timed steps x {args.rounds} rounds per path")
     # This machine's speed drifts by up to +-15% within a minute, so pooled timings of long runs compare
