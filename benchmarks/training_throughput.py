@@ -60,27 +60,12 @@ def plain_loop(cfg, dm, steps):
 
 
 def _plain_loop(cfg, dm, steps):
-    L.seed_everything(cfg.seed)
-    model = MAKE_MODEL[0](cfg)
-    opt_cfg = model.configure_optimizers()
-    opt, sched = (opt_cfg["optimizer"], opt_cfg["lr_scheduler"]["scheduler"]) if isinstance(opt_cfg, dict) else (opt_cfg, None)
-    model.train()
-    it = iter(dm.train_dataloader())
+    step = plain_stepper(cfg, dm)
     for _ in range(5):  # warm-up, as the Trainer path gets
-        batch = next(it)
-        loss = model.objective(model(batch["signals"]), batch)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
+        step()
     stamps = [time.perf_counter()]
     for _ in range(steps):
-        batch = next(it)
-        loss = model.objective(model(batch["signals"]), batch)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        if sched is not None:
-            sched.step()
+        step()
         stamps.append(time.perf_counter())
     return np.diff(stamps)
 
