@@ -9,6 +9,8 @@ Paper size (10,000 recordings x 6000 steps), two threads, float32 output.
      (latency bound: one recording's step is a chain of ~20 dependent operations);
    - the project's kernel with its arithmetic only (results of the last step written): what the arithmetic
      costs without the output;
+   - the project's kernel copying its tile out with numba's plain loop instead of column_store's vector
+     stores;
    - the project's kernel compiled with LLVM allowed to contract multiply + add (fused multiply-add: different
      rounding, so not used; its float64 difference from the exact kernel is printed).
    All write into arrays already touched, in alternating order, --rounds timed rounds after a warm-up; medians.
@@ -73,20 +75,22 @@ def pair_kernel(roads, road_of, p1s, p2s, dt, coef, consistent, seat_out, body_o
             seat_out[j, k], body_out[j, k], vel_out[j, k], disp_out[j, k] = seat, body, vel, disp
 
 
-def variant(fastmath=False, arithmetic_only=False):
-    """physics.fused._kernel recompiled from its source: with fused multiply-add allowed, or writing only the
-    last step's results (every store of the output loop skipped but the last tile's)."""
+def variant(fastmath=False, arithmetic_only=False, scalar_copy=False):
+    """physics.fused._kernel recompiled from its source: with fused multiply-add allowed, writing only the
+    last step's results (every store of the output loop skipped but the last tile's), or copying the tile out
+    with numba's plain loop (its scalar tail loop for every step) instead of column_store's vector stores."""
     source = fused._kernel.py_func
     namespace = dict(fused.__dict__)
-    if arithmetic_only:
+    if arithmetic_only or scalar_copy:
         import inspect
         import textwrap
         text = textwrap.dedent(inspect.getsource(source)).split("\n", 1)[1]  # drop the decorator
-        text = text.replace("            for lane in range(n_lanes):\n                i = first + lane",
-                            "            for lane in range(n_lanes if t0 + n_t == n_steps else 0):\n"
-                            "                i = first + lane")
-        assert "n_lanes if t0 + n_t == n_steps" in text, "fused._kernel's output loop changed"
-        exec(text, namespace)
+        old, new = (("            for lane in range(n_lanes):\n                i = first + lane",
+                     "            for lane in range(n_lanes if t0 + n_t == n_steps else 0):\n"
+                     "                i = first + lane") if arithmetic_only else
+                    ("n_vec = n_t - n_t % WIDTH", "n_vec = 0"))
+        assert old in text, "fused._kernel's output loop changed"
+        exec(text.replace(old, new), namespace)
         source = namespace["_kernel"]
     return numba.njit(parallel=True, fastmath={"contract"} if fastmath else False)(
         types.FunctionType(source.__code__, namespace, source.__name__))
@@ -113,6 +117,7 @@ def main():
     kernels = {"project kernel (16 lanes, SIMD, tile buffer)": fused._kernel,
                "previous kernel (two recordings per iteration, scalar)": pair_kernel,
                "project kernel, arithmetic only (last step written)": variant(arithmetic_only=True),
+               "project kernel, tile copied out by a plain loop (scalar stores)": variant(scalar_copy=True),
                "project kernel, fused multiply-add allowed": variant(fastmath=True)}
 
     few = slice(3, len(m3), 499)  # 21 recordings: a partial block of lanes

@@ -2,8 +2,9 @@
 
 The kernel steps 16 recordings side by side, so its results come out lane-major (step, recording) while the
 dataset is recording-major (recording, step). numba compiles the plain transposing loop into scalar stores,
-which made the copy cost as much as the arithmetic (benchmarks/kernel_anatomy.py); building the vector from
-eight loads and storing it at once halves the kernel's memory-bound tail. No effect on values.
+and at paper size the copy then cost more than the arithmetic (0.19 s against 0.145 s); building the vector
+from eight loads and storing it at once halves it (whole kernel 0.334 s -> 0.249 s in one run of
+benchmarks/kernel_anatomy.py). No effect on values.
 """
 
 from __future__ import annotations
