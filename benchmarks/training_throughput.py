@@ -110,7 +110,10 @@ def plain_stepper(cfg, dm):
     L.seed_everything(cfg.seed)
     model = MAKE_MODEL[0](cfg)
     opt_cfg = model.configure_optimizers()
-    opt, sched = (opt_cfg["optimizer"], opt_cfg["lr_scheduler"]["scheduler"]) if isinstance(opt_cfg, dict) else (opt_cfg, None)
+    if isinstance(opt_cfg, dict):
+        opt, sched = opt_cfg["optimizer"], opt_cfg["lr_scheduler"]["scheduler"]
+    else:
+        opt, sched = opt_cfg, None
     model.train()
     it = iter(dm.train_dataloader())
 

@@ -26,7 +26,8 @@ def store_column8(typingctx, dst, row, col, src, channel, step, lane):
     """
     indices = (row, col, channel, step, lane)
     if not (isinstance(dst, types.Array) and isinstance(src, types.Array) and dst.dtype == src.dtype
-            and dst.ndim == 2 and dst.layout == "C" and src.ndim == 3 and all(isinstance(i, types.Integer) for i in indices)):
+            and dst.ndim == 2 and dst.layout == "C" and src.ndim == 3
+            and all(isinstance(i, types.Integer) for i in indices)):
         return None
 
     def codegen(context, builder, sig, args):
