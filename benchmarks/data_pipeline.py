@@ -22,7 +22,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from hybrid_sysid.data.datamodule import _gather
-from hybrid_sysid.train import CONF_DIR, build_datamodule
+from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.train import build_datamodule
 
 
 def per_sample_loop(arrays, rows, starts, window):

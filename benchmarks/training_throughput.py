@@ -29,7 +29,8 @@ from hydra import compose, initialize_config_dir
 from hydra.utils import instantiate
 
 from hybrid_sysid.model.module import ParameterEstimator
-from hybrid_sysid.train import CONF_DIR, build_datamodule, build_model, build_trainer
+from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.train import build_datamodule, build_model, build_trainer
 
 
 class TinyNet(torch.nn.Module):

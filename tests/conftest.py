@@ -7,7 +7,7 @@ from hydra import compose, initialize_config_dir
 @pytest.fixture
 def make_cfg(tmp_path):
     """Compose the app's config with overrides; the dataset cache goes to a per-test folder."""
-    from hybrid_sysid.train import CONF_DIR  # here, so tests that need no torch start fast
+    from hybrid_sysid.config import CONF_DIR  # here, so tests that need no torch start fast
 
     def _make(*overrides):
         with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):

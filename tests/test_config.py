@@ -68,7 +68,7 @@ def test_unknown_group_options_fail_at_composition(make_cfg, overrides):
 def run_cli(tmp_path, *args):
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     env["HYBRID_SYSID_CACHE"] = str(tmp_path / "cache")
-    return subprocess.run([sys.executable, "-c", "from hybrid_sysid.train import main; main()", *args],
+    return subprocess.run([sys.executable, "-c", "from hybrid_sysid.app import main; main()", *args],
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
 
 

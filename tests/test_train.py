@@ -5,6 +5,7 @@ import json
 import pandas as pd
 import pytest
 
+from hybrid_sysid.report.run_figures import write_run_figures
 from hybrid_sysid.train import train
 
 TINY = ["data=tiny", "trainer=debug", "noise.eval_std=[0.0,0.05]"]
@@ -14,7 +15,7 @@ TINY = ["data=tiny", "trainer=debug", "noise.eval_std=[0.0,0.05]"]
 def tiny_run(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
-    from hybrid_sysid.train import CONF_DIR
+    from hybrid_sysid.config import CONF_DIR
     tmp = tmp_path_factory.mktemp("run")
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
         cfg = compose(config_name="config", overrides=[*TINY, f"data.cache_dir={tmp / 'cache'}",
@@ -50,6 +51,7 @@ def test_predictions_and_curves_agree_with_the_record(tiny_run):
     curves = pd.read_csv(run_dir / "curves.csv")
     assert sorted(curves.step.unique()) == [10, 20]
     assert set(curves.split) == {"train", "test"} and set(curves.noise_std) == {0.0, 0.05}
+    write_run_figures(run_dir)  # the app draws them from the two files once train() returns
     for name in ("learning_curves.png", "test_noise0.png", "test_noise0.05.png"):
         assert (run_dir / "figures" / name).stat().st_size > 10_000
 
@@ -72,6 +74,7 @@ def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_p
     pred = pd.read_csv(tmp_path / "k" / "predictions.csv")
     assert sorted(pred[pred.split == "test"].windows.unique()) == [1, 4]
     assert sorted(pred[pred.split != "test"].windows.unique()) == [1]
+    write_run_figures(tmp_path / "k")
     assert (tmp_path / "k" / "figures" / "test_noise0.05_windows4.png").exists()
 
 

@@ -1,3 +1,3 @@
-from hybrid_sysid.train import main
+from hybrid_sysid.app import main
 
 main()

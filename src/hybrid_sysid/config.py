@@ -8,10 +8,16 @@ naming the key, the value and what is allowed.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any, Dict, List, Optional
 
 from hydra.core.config_store import ConfigStore
-from omegaconf import MISSING, DictConfig
+from omegaconf import MISSING, DictConfig, OmegaConf
+
+from hybrid_sysid.data import DatasetSpec, split_by_road
+from hybrid_sysid.physics import QuarterCar
+
+CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
 
 
 class ConfigError(ValueError):
@@ -99,7 +105,19 @@ class Config:
 
 
 def register() -> None:
+    """The schema for Hydra, and the resolver the run directory uses: hydra.run.dir is ``resume`` when given,
+    else a new time-stamped directory."""
     ConfigStore.instance().store(name="schema", node=Config)
+    OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
+
+
+def dataset_spec(cfg: DictConfig) -> DatasetSpec:
+    """The values of the config that change the simulated data (the cache key)."""
+    d = cfg.data
+    return DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
+                       n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
+                       m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
+                       car=QuarterCar(**cfg.get("car", {})))
 
 
 def _bad(key: str, value, allowed: str):
@@ -108,9 +126,6 @@ def _bad(key: str, value, allowed: str):
 
 def validate(cfg: DictConfig) -> None:
     """Every range check, before any work. Checks that need the physics (stability) use its own functions."""
-    from hybrid_sysid.data.datamodule import split_by_road
-    from hybrid_sysid.train import dataset_spec
-
     d, t, o = cfg.data, cfg.trainer, cfg.model.optim
     try:
         dataset_spec(cfg).validate()
@@ -175,3 +190,6 @@ def _validate_baseline(cfg: DictConfig) -> None:
         cls(**kwargs).check_lengths(cfg.data.window, cfg.data.n_steps)
     except ValueError as exc:  # the baseline's messages already name the key
         raise ConfigError(str(exc)) from exc
+
+
+register()  # composing the app's config (the app, tests, notebooks) needs both

@@ -1,6 +1,7 @@
-"""The Hydra entry point: one run = build the data and the model, fit, evaluate the best checkpoint, record.
+"""One run: build the data and the model, fit, evaluate the best checkpoint, write the run record.
 
-``train(cfg, run_dir)`` is plain Python (tests call it in process); ``main`` is the thin Hydra wrapper.
+``train(cfg, run_dir)`` is plain Python on a composed config (tests call it in process); the Hydra entry
+point that calls it is ``hybrid_sysid.app``.
 """
 
 from __future__ import annotations
@@ -12,41 +13,22 @@ import sys
 import time
 from pathlib import Path
 
-import hydra
 import lightning as L
 import numpy as np
 import pandas as pd
 import torch
-from hydra.core.hydra_config import HydraConfig
-from hydra.types import RunMode
 from hydra.utils import instantiate
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from hybrid_sysid import config as schema
 from hybrid_sysid.baselines import is_baseline
-from hybrid_sysid.config import ConfigError, validate
-from hybrid_sysid.data import DatasetSpec, QCMDataModule
-from hybrid_sysid.evaluation import plots
-from hybrid_sysid.evaluation.metrics import summarise
-from hybrid_sysid.evaluation.records import RECORD, run_record, write_json_atomic
+from hybrid_sysid.config import dataset_spec, validate
+from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.model.module import ParameterEstimator
-from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.records import RECORD, run_record, write_json_atomic
 
 log = logging.getLogger("hybrid_sysid")
 CURVE_COLUMNS = ["step", "seconds", "split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]
-CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
-# hydra.run.dir is `resume` when given, else a new time-stamped directory
-OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
-schema.register()
-
-
-def dataset_spec(cfg: DictConfig) -> DatasetSpec:
-    d = cfg.data
-    return DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
-                       n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
-                       m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
-                       car=QuarterCar(**cfg.get("car", {})))
-
 
 def build_datamodule(cfg: DictConfig) -> QCMDataModule:
     d = cfg.data
@@ -109,18 +91,9 @@ def evaluate(model, dm: QCMDataModule, noise_levels, windows=(1,)) -> tuple[list
 
 
 def write_outputs(run_dir: Path, predictions: pd.DataFrame, curves: pd.DataFrame) -> None:
-    """predictions.csv, curves.csv and figures/ (test predictions per noise level and K, learning curves)."""
+    """predictions.csv and curves.csv; the run's figures are drawn from them by the report layer."""
     curves.to_csv(run_dir / "curves.csv", index=False)
     predictions.to_csv(run_dir / "predictions.csv", index=False)
-    figures = run_dir / "figures"
-    figures.mkdir(exist_ok=True)
-    test = predictions[predictions.split == "test"]
-    for (std, k), sub in test.groupby(["noise_std", "windows"], sort=True):
-        name = f"test_noise{std:g}" + ("" if k == 1 else f"_windows{k}")
-        title = f"test, noise std {std:g} m/s^2" + ("" if k == 1 else f", mean of {k} windows")
-        plots.predictions_figure(sub, figures / f"{name}.png", title)
-    if len(curves):
-        plots.learning_curves_figure(curves, figures / "learning_curves.png")
 
 
 def console_table(results: list[dict]) -> str:
@@ -211,44 +184,3 @@ def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, n
     log.info("run %s: baseline %s, fits in %.2f s\n%s", run_dir, cfg.model.net._target_, estimator.fit_seconds,
              console_table(results))
     return record
-
-
-_task_started = False
-
-
-@hydra.main(version_base="1.3", config_path=CONF_DIR, config_name="config")
-def hydra_main(cfg: DictConfig) -> dict:
-    global _task_started
-    _task_started = True
-    hc = HydraConfig.get()
-    run_dir = Path(hc.runtime.output_dir)
-    overrides = list(hc.overrides.task)
-    multirun = hc.mode == RunMode.MULTIRUN
-    try:
-        return train(cfg, run_dir, overrides)
-    except Exception as exc:  # record the failure where the sweep summary will look for it
-        error = f"{type(exc).__name__}: {exc}"
-        run_dir.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(run_dir / RECORD, run_record("failed", overrides, cfg.get("seed", 0), error=error))
-        if multirun:  # let the other jobs run; the sweep summary exits non-zero
-            log.error("job failed: %s", error)
-            return {"status": "failed", "error": error}
-        if isinstance(exc, ConfigError) and os.environ.get("HYDRA_FULL_ERROR") != "1":
-            print(f"error: {exc}", file=sys.stderr)
-            sys.exit(2)  # a bad value: one line, no traceback
-        raise
-
-
-def main() -> None:
-    """Console script: Hydra's app, with exit status 2 for a config that does not compose (unknown key,
-    wrong type, unknown group option): Hydra itself exits 1 for those, like for any failure."""
-    try:
-        hydra_main()
-    except SystemExit as exc:
-        if exc.code == 1 and not _task_started:
-            sys.exit(2)
-        raise
-
-
-if __name__ == "__main__":
-    main()

@@ -7,6 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from hybrid_sysid.report.run_figures import write_run_figures
 from hybrid_sysid.train import build_datamodule, train
 
 TINY = ["data=tiny", "noise.eval_std=[0.0,0.05]", "evaluation.windows=[1,3]"]
@@ -16,7 +17,7 @@ TINY = ["data=tiny", "noise.eval_std=[0.0,0.05]", "evaluation.windows=[1,3]"]
 def compose_cfg(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
-    from hybrid_sysid.train import CONF_DIR
+    from hybrid_sysid.config import CONF_DIR
     cache = tmp_path_factory.mktemp("cache")
 
     def _make(*overrides):
@@ -80,6 +81,7 @@ def test_ls_window_run_writes_predictions_curves_and_figures(window_run):
         dev = (sub[f"{p}_true"] - sub[f"{p}_pred"]).abs() / sub[f"{p}_true"]
         assert len(sub) == r["n"] and dev.mean() == pytest.approx(r["mean_rel_dev"], rel=1e-6, abs=1e-12)
     assert len(pd.read_csv(run_dir / "curves.csv")) == 0  # no learning curve, header only
+    write_run_figures(run_dir)  # the app draws them from the two files once train() returns
     for name in ("test_noise0.png", "test_noise0.05.png", "test_noise0_windows3.png", "test_noise0.05_windows3.png"):
         assert (run_dir / "figures" / name).stat().st_size > 10_000
 

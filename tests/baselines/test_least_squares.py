@@ -4,8 +4,9 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.baselines import LeastSquaresEstimator, fit_p, lstsq_rows
-from hybrid_sysid.data import DatasetSpec, QCMDataModule
-from hybrid_sysid.evaluation.metrics import relative_deviation
+from hybrid_sysid.data import DatasetSpec
+from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.model.metrics import relative_deviation
 
 
 @pytest.fixture(scope="module")

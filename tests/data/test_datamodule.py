@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 import torch
 
-from hybrid_sysid.data import DatasetSpec, QCMDataModule
+from hybrid_sysid.data import DatasetSpec
+from hybrid_sysid.data.datamodule import QCMDataModule
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 

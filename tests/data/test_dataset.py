@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from hybrid_sysid.data import DatasetSpec, QCMDataModule, generate_dataset, get_dataset, split_by_road
+from hybrid_sysid.data import DatasetSpec, generate_dataset, get_dataset, split_by_road
+from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.data import dataset as dataset_mod
 from hybrid_sysid.physics import QuarterCar
 

@@ -7,8 +7,8 @@ import pytest
 import torch
 from torch import nn
 
-from hybrid_sysid.data import DatasetSpec, QCMDataModule
-from hybrid_sysid.data.datamodule import SPLITS
+from hybrid_sysid.data import SPLITS, DatasetSpec
+from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.model.module import ParameterEstimator
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)

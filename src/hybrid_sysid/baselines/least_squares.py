@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from hybrid_sysid.baselines.filters import _fmt, bandpass_taps, check_bandpass, fir_valid
-from hybrid_sysid.data.datamodule import SPLITS  # the split codes that seed the evaluation noise
+from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
 from hybrid_sysid.physics import relative_states
 
 SPANS = ("window", "series")

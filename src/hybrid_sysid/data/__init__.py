@@ -1,17 +1,9 @@
-"""Simulated datasets, their cache, and the LightningDataModule that cuts them into windows.
+"""Simulated datasets, their on-disk cache and the split by road (numpy only).
 
-Generating or loading a dataset needs numpy only: the torch side (QCMDataModule, split_by_road) is imported on
-first use, so a process that only generates data does not carry torch and Lightning (~0.5 GiB resident).
+The LightningDataModule that cuts recordings into windows is ``hybrid_sysid.data.datamodule.QCMDataModule``.
 """
 
 from hybrid_sysid.data.dataset import DatasetSpec, QCMDataset, generate_dataset, get_dataset
+from hybrid_sysid.data.splits import SPLITS, Split, split_by_road
 
-__all__ = ["DatasetSpec", "QCMDataModule", "QCMDataset", "generate_dataset", "get_dataset", "split_by_road"]
-_LAZY = {"QCMDataModule", "split_by_road"}
-
-
-def __getattr__(name):
-    if name in _LAZY:
-        from hybrid_sysid.data import datamodule
-        return getattr(datamodule, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__all__ = ["SPLITS", "DatasetSpec", "QCMDataset", "Split", "generate_dataset", "get_dataset", "split_by_road"]

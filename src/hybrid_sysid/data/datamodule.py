@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
 from typing import Iterator, Sequence
 
 import lightning as L
@@ -11,42 +10,8 @@ import torch
 from torch.utils.data import DataLoader, IterableDataset
 
 from hybrid_sysid.data.dataset import DatasetSpec, QCMDataset, get_dataset
+from hybrid_sysid.data.splits import SPLITS, split_by_road
 from hybrid_sysid.physics import relative_states
-
-SPLITS = ("train", "val", "test")
-_SPLIT_CODE = {s: i for i, s in enumerate(SPLITS)}
-
-
-@dataclass(frozen=True)
-class Split:
-    """Which roads go where: test roads never appear in train or val."""
-
-    train: np.ndarray  # recording indices
-    val: np.ndarray
-    test: np.ndarray
-
-
-def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fraction: float) -> Split:
-    """The first roads train (the last of them validate), the rest test, as in the paper (80 / 20 roads)."""
-    if not 0.0 < train_fraction < 1.0:
-        raise ValueError(f"data.train_fraction = {train_fraction} is not allowed: must lie in (0, 1)")
-    if not 0.0 <= val_fraction < 1.0:
-        raise ValueError(f"data.val_fraction = {val_fraction} is not allowed: must lie in [0, 1)")
-    n_trainval = int(round(train_fraction * n_roads))
-    n_val = max(1, int(round(val_fraction * n_trainval))) if val_fraction > 0 else 0
-    n_train = n_trainval - n_val
-    if n_train < 1 or n_trainval >= n_roads:
-        raise ValueError(
-            f"data.n_roads = {n_roads} is too few for data.train_fraction = {train_fraction} and "
-            f"data.val_fraction = {val_fraction}: need at least one training, one test"
-            + (" and one validation road" if val_fraction > 0 else " road"))
-
-    def recordings(r0, r1):
-        return np.arange(r0 * n_masses, r1 * n_masses)
-
-    val = recordings(n_train, n_trainval) if n_val else recordings(0, n_train)  # no val roads: val on train
-    return Split(train=recordings(0, n_train), val=val, test=recordings(n_trainval, n_roads))
-
 
 def _windows(arr: np.ndarray, window: int) -> np.ndarray:
     """A read-only view of every window of every recording: (recordings, starts, window), no copy."""
@@ -212,7 +177,7 @@ class QCMDataModule(L.LightningDataModule):
             return self._eval_cache[key]
         self.setup()
         rows = self.rows(split)
-        code = _SPLIT_CODE[split]
+        code = SPLITS.index(split)
         rng = np.random.default_rng([self.seed, code])
         starts = rng.integers(0, self.n_starts(), size=len(rows))
         base = rng.standard_normal((len(rows), 2, self.window)) if noise_std > 0 else None

@@ -10,7 +10,7 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.evaluation.metrics import relative_deviation, summarise
+from hybrid_sysid.model.metrics import relative_deviation, summarise
 
 OPTIMIZERS = {"adam": torch.optim.Adam, "adamw": torch.optim.AdamW}
 SCHEDULES = ("constant", "onecycle", "cosine")

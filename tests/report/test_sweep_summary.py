@@ -10,7 +10,7 @@ import pytest
 from evaluation_fakes import (FAILED_ERROR, NOISES, OBJECTIVES, PARAMS, SEEDS, make_run, make_sweep, parse_markdown,
                               plain)
 
-from hybrid_sysid.evaluation.summary import collect, find_runs, summary_table, to_markdown, write_summary
+from hybrid_sysid.report.summary import collect, find_runs, summary_table, to_markdown, write_summary
 
 DDOF = 1
 

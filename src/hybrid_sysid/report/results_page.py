@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.evaluation import sweep_plots
-from hybrid_sysid.evaluation.protocol import one_line, protocol
-from hybrid_sysid.evaluation.records import RECORD
-from hybrid_sysid.evaluation.summary import (METRICS, _collect, _resolve, _write_atomic, failed_lines, row_keys,
+from hybrid_sysid.report import sweep_figures
+from hybrid_sysid.report.protocol import one_line, protocol
+from hybrid_sysid.records import RECORD
+from hybrid_sysid.report.summary import (METRICS, _collect, _resolve, _write_atomic, failed_lines, row_keys,
                                              summary_table, to_markdown, windows_note)
 
 
@@ -76,13 +76,13 @@ def write_results(file, paths, split: str = "test", metric: str = "mean_rel_dev"
         if any(c[2] == "mean" for c in table.columns):
             figures.mkdir(parents=True, exist_ok=True)
             _write_atomic(figures / f"{slug}.png",
-                          lambda p: sweep_plots.robustness_figure(table, p, metric=metric, split=split))
+                          lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
             lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
         failed = failed_lines(df, row_keys(df))
         if failed:
             lines += ["Failed jobs:", "", *failed, ""]
         if reproduction:
-            from hybrid_sysid.evaluation.reproduction import LEGEND, comparison_parts
+            from hybrid_sysid.report.paper import LEGEND, comparison_parts
 
             table_md, reading = comparison_parts(df, root)
             lines += ["### The paper's figures beside ours", "", table_md, LEGEND, "", reading, ""]

@@ -1,4 +1,5 @@
-"""Figures of one run, in the style of the paper's Fig. 2-33 (matplotlib, PNG, no screen needed)."""
+"""Figures of one run, in the style of the paper's Fig. 6-29 (matplotlib, PNG, no screen needed), drawn from the
+run's predictions.csv and curves.csv."""
 
 from __future__ import annotations
 
@@ -11,7 +12,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from hybrid_sysid.evaluation.metrics import PARAMETERS  # noqa: E402
+from hybrid_sysid.model.metrics import PARAMETERS  # noqa: E402
 
 
 def predictions_figure(pred: pd.DataFrame, path: Path, title: str) -> None:
@@ -50,3 +51,19 @@ def learning_curves_figure(curves: pd.DataFrame, path: Path, title: str = "learn
     fig.tight_layout()
     fig.savefig(path, dpi=110)
     plt.close(fig)
+
+
+def write_run_figures(run_dir) -> None:
+    """figures/ of a run directory: test predictions per noise level and K, and the learning curves."""
+    run_dir = Path(run_dir)
+    predictions = pd.read_csv(run_dir / "predictions.csv")
+    curves = pd.read_csv(run_dir / "curves.csv")
+    figures = run_dir / "figures"
+    figures.mkdir(exist_ok=True)
+    test = predictions[predictions.split == "test"]
+    for (std, k), sub in test.groupby(["noise_std", "windows"], sort=True):
+        name = f"test_noise{std:g}" + ("" if k == 1 else f"_windows{k}")
+        title = f"test, noise std {std:g} m/s^2" + ("" if k == 1 else f", mean of {k} windows")
+        predictions_figure(sub, figures / f"{name}.png", title)
+    if len(curves):
+        learning_curves_figure(curves, figures / "learning_curves.png")

@@ -17,9 +17,9 @@ from typing import Iterable
 
 import pandas as pd
 
-from hybrid_sysid.evaluation import sweep_plots
-from hybrid_sysid.evaluation.records import RECORD
-from hybrid_sysid.evaluation.tables import K_LEVEL, compared_level, to_latex, to_markdown  # noqa: F401 (re-export)
+from hybrid_sysid.report import sweep_figures
+from hybrid_sysid.records import RECORD
+from hybrid_sysid.report.tables import K_LEVEL, compared_level, to_latex, to_markdown  # noqa: F401 (re-export)
 
 METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
 HEAD = ["run", "status", "error", "seed"]
@@ -79,7 +79,7 @@ def _hydra_overrides(run_dir: Path) -> list[str]:
 def _default_of(run_dir: Path, key: str) -> str:
     """What a run used for a key it did not override: its config-group choice or its config value, as Hydra
     saved them under .hydra/; "" when neither is there."""
-    from hybrid_sysid.evaluation.protocol import _get, run_choices, run_config
+    from hybrid_sysid.report.protocol import _get, run_choices, run_config
 
     choices = run_choices(run_dir)
     value = choices[key] if key in choices else _get(run_config(run_dir), key)
@@ -246,7 +246,7 @@ def _curves(df: pd.DataFrame, root: Path, keys: list[str]) -> pd.DataFrame:
             c = pd.read_csv(root / r.run / "curves.csv")
         except (OSError, ValueError):
             continue
-        frames.append(c.assign(run=r.run, label=sweep_plots.row_label(keys, [r[k] for k in keys])))
+        frames.append(c.assign(run=r.run, label=sweep_figures.row_label(keys, [r[k] for k in keys])))
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
@@ -277,10 +277,10 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
         out.mkdir(exist_ok=True)
         if any(c[2] == "mean" for c in table.columns):  # at least one completed run
             _write_atomic(out / "robustness.png",
-                          lambda p: sweep_plots.robustness_figure(table, p, metric=metric, split=split))
+                          lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
         curves = _curves(df, root, keys)
         if len(curves):  # runs record curves on train and test only: other splits fall back to test
             on = split if (curves["split"] == split).any() else "test"
             _write_atomic(out / "learning_curves_compared.png",
-                          lambda p: sweep_plots.learning_curves_compared(curves, p, metric=metric, split=on))
+                          lambda p: sweep_figures.learning_curves_compared(curves, p, metric=metric, split=on))
     return df, table

@@ -19,9 +19,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.evaluation.protocol import protocol, run_choices, run_config
-from hybrid_sysid.evaluation.summary import _collect, _resolve, _sort_key, _write_atomic, row_keys
-from hybrid_sysid.evaluation.tables import K_LEVEL
+from hybrid_sysid.report.protocol import protocol, run_choices, run_config
+from hybrid_sysid.report.summary import _collect, _resolve, _sort_key, _write_atomic, row_keys
+from hybrid_sysid.report.tables import K_LEVEL
 
 PAPER_STEPS = 500_000
 NOISE_LEVELS = (0.0, 0.01)  # the paper's: clean, and N(0, 0.01) added to both channels (sec. 3.3)

@@ -7,8 +7,8 @@ import pandas as pd
 import pytest
 from evaluation_fakes import known_results, make_run, parse_markdown, plain
 
-from hybrid_sysid.evaluation.summary import collect, summary_table, to_latex, to_markdown, write_summary
-from hybrid_sysid.evaluation.tables import compare_marks
+from hybrid_sysid.report.summary import collect, summary_table, to_latex, to_markdown, write_summary
+from hybrid_sysid.report.tables import compare_marks
 
 EPS = 1e-6  # relative distance of a gap from the spread: far above rounding, far below any real difference
 LAB = np.array([0.10, 0.12, 0.14])  # mean 0.12, sample std 0.02

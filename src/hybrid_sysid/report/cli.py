@@ -18,8 +18,8 @@ import shlex
 import sys
 from pathlib import Path
 
-from hybrid_sysid.evaluation.records import RECORD
-from hybrid_sysid.evaluation.summary import METRICS, find_runs, to_markdown, write_summary
+from hybrid_sysid.records import RECORD
+from hybrid_sysid.report.summary import METRICS, find_runs, to_markdown, write_summary
 
 PROG = "hybrid-sysid-report"
 
@@ -68,7 +68,7 @@ def main(argv=None) -> int:
             print(to_markdown(table, compare=args.compare), end="")
             written = ["summary.csv", "summary.md"] + ["summary.tex"] * args.latex
             if args.reproduction:
-                from hybrid_sysid.evaluation.reproduction import write_reproduction
+                from hybrid_sysid.report.paper import write_reproduction
 
                 print("\n" + write_reproduction(out, paths=args.paths), end="")
                 written.append("reproduction.md")
@@ -77,7 +77,7 @@ def main(argv=None) -> int:
             print(f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/{', '.join(written)}, figures/",
                   file=sys.stderr)
         if args.results is not None:
-            from hybrid_sysid.evaluation.results_doc import write_results
+            from hybrid_sysid.report.results_page import write_results
 
             command = " ".join([PROG, *map(shlex.quote, map(str, args.paths)), "--results",
                                 shlex.quote(str(args.results))] + ["--reproduction"] * args.reproduction

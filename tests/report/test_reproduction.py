@@ -8,8 +8,8 @@ import pytest
 from evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
 from omegaconf import OmegaConf
 
-from hybrid_sysid.evaluation.reproduction import PAPER, constant_guess, reproduction_markdown, write_reproduction
-from hybrid_sysid.report import main
+from hybrid_sysid.report.paper import PAPER, constant_guess, reproduction_markdown, write_reproduction
+from hybrid_sysid.report.cli import main
 
 TEX = Path("/work/shared/paper/sokolowski2020_hybrid_objective.tex")
 CONFIG = {"data": {"n_roads": 100, "n_masses": 100, "n_steps": 6000, "dt": 0.001, "speed": 15.0, "window": 500,
@@ -203,7 +203,7 @@ def test_cli_results_page_places_the_notes_after_the_header(tmp_path, capsys):
 
 
 def test_callback_writes_reproduction_when_asked(tmp_path, capsys):
-    from hybrid_sysid.callbacks import SweepSummary
+    from hybrid_sysid.report.sweep_callback import SweepSummary
 
     sweep = _make(tmp_path / "sw")
     config = OmegaConf.create({"hydra": {"sweep": {"dir": str(sweep)}}})
@@ -216,7 +216,7 @@ def test_callback_writes_reproduction_when_asked(tmp_path, capsys):
 def test_paper_experiment_asks_for_the_reproduction_within_a_cpu_budget():
     from hydra import compose, initialize_config_dir
 
-    from hybrid_sysid.train import CONF_DIR
+    from hybrid_sysid.config import CONF_DIR
 
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
         cfg = compose(config_name="config", overrides=["experiment=paper"], return_hydra_config=True)

@@ -1,7 +1,7 @@
 """Hydra callback that ends every sweep with its comparison table.
 
 Hydra skips on_multirun_end when a job raised, and with the joblib launcher job callbacks run in worker
-processes; so jobs record their own failure and return normally (see train.main), and the summary here is
+processes; so jobs record their own failure and return normally (see hybrid_sysid.app), and the summary here is
 built from the run records on disk alone. A sweep with a failed job still exits non-zero.
 
 Options (set under hydra.callbacks.sweep_summary in an experiment file, e.g. conf/experiment/paper.yaml):
@@ -27,14 +27,14 @@ class SweepSummary(Callback):
         self.split, self.metric, self.reproduction, self.latex = split, metric, reproduction, latex
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        from hybrid_sysid.evaluation.summary import to_markdown, write_summary
+        from hybrid_sysid.report.summary import to_markdown, write_summary
 
         sweep_dir = Path(config.hydra.sweep.dir)
         df, table = write_summary(sweep_dir, split=self.split, metric=self.metric, latex=self.latex)
         print(f"\n{self.metric} on the {self.split} split [%], mean ± std over seeds ({sweep_dir}):\n")
         print(to_markdown(table))
         if self.reproduction:
-            from hybrid_sysid.evaluation.reproduction import write_reproduction
+            from hybrid_sysid.report.paper import write_reproduction
 
             print(write_reproduction(sweep_dir))
             print(f"(written to {sweep_dir / 'reproduction.md'})")

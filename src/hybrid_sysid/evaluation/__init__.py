@@ -1,1 +1,0 @@
-"""Metrics, run records, tables and figures."""
