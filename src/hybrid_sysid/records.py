@@ -1,18 +1,17 @@
-"""The self-describing run record: metrics.json (DESIGN.md's schema), curves.csv, predictions.csv."""
+"""The self-describing run record, metrics.json (its fields: docs/design.md, \"Run records\")."""
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
+
+from hybrid_sysid.files import write_atomic
 
 RECORD = "metrics.json"
 
 
 def write_json_atomic(path: Path, payload: dict) -> None:
-    tmp = path.with_suffix(path.suffix + ".tmp")
-    tmp.write_text(json.dumps(payload, indent=2) + "\n")
-    os.replace(tmp, path)
+    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(payload, indent=2) + "\n"))
 
 
 def run_record(status: str, overrides: list[str], seed: int, steps: int = 0, train_seconds: float = 0.0,

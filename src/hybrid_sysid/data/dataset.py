@@ -10,7 +10,6 @@ import hashlib
 import json
 import logging
 import os
-import tempfile
 import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -18,6 +17,7 @@ from pathlib import Path
 import numpy as np
 from filelock import FileLock
 
+from hybrid_sysid.files import write_atomic
 from hybrid_sysid.physics import fused
 from hybrid_sysid.physics import ROAD_CLASSES, QuarterCar, relative_states, road_profiles, simulate, stable_dt_limit
 
@@ -167,18 +167,17 @@ def _checksum(arrays: dict) -> str:
 
 
 def save_dataset(ds: QCMDataset, path: Path) -> None:
-    """Write atomically: a temporary file in the same folder, then a rename, so a crash leaves nothing loadable."""
+    """Write atomically (files.write_atomic), so a crash leaves nothing loadable."""
     path.parent.mkdir(parents=True, exist_ok=True)
     arrays = {name: getattr(ds, name) for name in _ARRAYS}
     arrays["road_class"] = arrays["road_class"].astype("U1")
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            np.savez(fh, key=np.array(ds.spec.key()), checksum=np.array(_checksum(arrays)), **arrays)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    checksum = _checksum(arrays)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(ds.spec.key()), checksum=np.array(checksum), **arrays)
+
+    write_atomic(path, write)
 
 
 class CacheError(ValueError):

@@ -19,8 +19,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from hybrid_sysid.files import write_atomic
 from hybrid_sysid.report.protocol import protocol, run_choices, run_config
-from hybrid_sysid.report.summary import _collect, _resolve, _sort_key, _write_atomic, row_keys
+from hybrid_sysid.report.summary import _collect, _resolve, _sort_key, row_keys
 from hybrid_sysid.report.tables import K_LEVEL
 
 PAPER_STEPS = 500_000
@@ -353,6 +354,6 @@ def write_reproduction(out_dir, paths=None) -> str:
     out_dir = Path(out_dir)
     text = reproduction_markdown(out_dir if paths is None else paths)
     out_dir.mkdir(parents=True, exist_ok=True)
-    _write_atomic(out_dir / "reproduction.md", lambda p: p.write_text(text, encoding="utf-8"))
+    write_atomic(out_dir / "reproduction.md", lambda p: p.write_text(text, encoding="utf-8"))
     return text
 

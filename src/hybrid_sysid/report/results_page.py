@@ -16,9 +16,10 @@ from pathlib import Path
 import pandas as pd
 
 from hybrid_sysid.report import sweep_figures
+from hybrid_sysid.files import write_atomic
 from hybrid_sysid.report.protocol import one_line, protocol
 from hybrid_sysid.records import RECORD
-from hybrid_sysid.report.summary import (METRICS, _collect, _resolve, _write_atomic, failed_lines, row_keys,
+from hybrid_sysid.report.summary import (METRICS, _collect, _resolve, failed_lines, row_keys,
                                              summary_table, to_markdown, windows_note)
 
 
@@ -75,7 +76,7 @@ def write_results(file, paths, split: str = "test", metric: str = "mean_rel_dev"
                   + windows_note(df, table, split), "", to_markdown(table, compare=compare)]
         if any(c[2] == "mean" for c in table.columns):
             figures.mkdir(parents=True, exist_ok=True)
-            _write_atomic(figures / f"{slug}.png",
+            write_atomic(figures / f"{slug}.png",
                           lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
             lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
         failed = failed_lines(df, row_keys(df))
@@ -88,5 +89,5 @@ def write_results(file, paths, split: str = "test", metric: str = "mean_rel_dev"
             lines += ["### The paper's figures beside ours", "", table_md, LEGEND, "", reading, ""]
     text = "\n".join(lines).rstrip("\n") + "\n"
     file.parent.mkdir(parents=True, exist_ok=True)
-    _write_atomic(file, lambda p: p.write_text(text, encoding="utf-8"))
+    write_atomic(file, lambda p: p.write_text(text, encoding="utf-8"))
     return text, n_all, n_bad

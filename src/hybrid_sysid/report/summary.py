@@ -18,6 +18,7 @@ from typing import Iterable
 import pandas as pd
 
 from hybrid_sysid.report import sweep_figures
+from hybrid_sysid.files import write_atomic
 from hybrid_sysid.records import RECORD
 from hybrid_sysid.report.tables import K_LEVEL, compared_level, to_latex, to_markdown  # noqa: F401 (re-export)
 
@@ -197,16 +198,6 @@ def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel
     return table.iloc[sorted(range(len(table)), key=lambda i: _sort_key(table.index[i]))]
 
 
-def _write_atomic(path: Path, write) -> None:
-    """write(tmp) then rename: a reader (or a concurrent summary from another job) never sees half a file."""
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        write(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
-
-
 def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
     """A sentence naming K when every row of the split uses the same K other than 1 (the table then has no K
     level to show it), else an empty string."""
@@ -265,22 +256,22 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
     compared_level(table, compare)  # a bad compare key fails before anything is written
     keys = row_keys(df)
     sweep_dir.mkdir(parents=True, exist_ok=True)
-    _write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
-    _write_atomic(sweep_dir / "summary.md", lambda p: p.write_text(
+    write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
+    write_atomic(sweep_dir / "summary.md", lambda p: p.write_text(
         _markdown_report(df, table, split, metric, keys, compare), encoding="utf-8"))
     if latex:
         caption = f"{METRICS[metric]} on the {split} split [%], mean ± std over seeds"
-        _write_atomic(sweep_dir / "summary.tex",
+        write_atomic(sweep_dir / "summary.tex",
                       lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"))
     if figures:
         out = sweep_dir / "figures"
         out.mkdir(exist_ok=True)
         if any(c[2] == "mean" for c in table.columns):  # at least one completed run
-            _write_atomic(out / "robustness.png",
+            write_atomic(out / "robustness.png",
                           lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
         curves = _curves(df, root, keys)
         if len(curves):  # runs record curves on train and test only: other splits fall back to test
             on = split if (curves["split"] == split).any() else "test"
-            _write_atomic(out / "learning_curves_compared.png",
+            write_atomic(out / "learning_curves_compared.png",
                           lambda p: sweep_figures.learning_curves_compared(curves, p, metric=metric, split=on))
     return df, table
