@@ -10,6 +10,8 @@ import time
 import pytest
 import torch
 
+pytestmark = pytest.mark.integration  # subprocess runs of the app: minutes, still in the default suite
+
 ARGS = ["data=tiny", "trainer=debug", "trainer.max_steps=400", "trainer.eval_every_n_steps=200",
         "trainer.progress_bar=false", "noise.eval_std=[0.0,0.05]"]
 
