@@ -1,8 +1,10 @@
 """hybrid-sysid: labelled vs physics-informed (hybrid) objectives for parameter identification.
 
-Layers, bottom up: ``physics`` (plain numpy), ``data`` (cached datasets, LightningDataModule),
-``model`` (CNNs, objectives, LightningModule), ``evaluation`` (metrics, tables, figures),
-``train`` (the Hydra entry point).
+Layers, each importing only those before it: ``physics`` (plain numpy), ``data`` (cached datasets, the split by
+road, the LightningDataModule), ``model`` (CNNs, objectives, LightningModule, metrics) and ``baselines`` (least
+squares without a network), training (``config``, ``train``, ``records``), ``report`` (summaries, tables,
+figures, the ``hybrid-sysid-report`` command), ``app`` (the Hydra app behind ``hybrid-sysid``). ``files`` holds
+the atomic writer any layer may use. docs/design.md describes each.
 """
 
 __version__ = "0.1.0"

@@ -70,8 +70,8 @@ class LeastSquaresEstimator:
         from t0. It sees no windows, so it ignores K: every K gives the same one estimate per recording.
     filter "bandpass": the same zero-phase FIR band-pass [low_hz, high_hz] (``taps`` long, dt the data's step)
         on the seat acceleration and both regressors before the fit; the filter's edges are dropped.
-        Defaults 4-20 Hz, 151 taps, for dt = 5 ms: measured best under noise std 0.01 on data=default's
-        training split (conf/model/ls_bandpass.yaml says why and what else was tried).
+        The defaults, 4-20 Hz and 151 taps at dt = 5 ms, keep the seat resonance and drop the drift of
+        integrated noise (docs/baselines.md: how they were chosen).
     """
 
     trainable = False  # train() evaluates it directly, without Lightning
