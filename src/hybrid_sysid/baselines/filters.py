@@ -19,7 +19,8 @@ import numbers
 import numpy as np
 
 
-def _fmt(value) -> str:
+def format_value(value) -> str:
+    """A value as an error message shows it: numbers in %g, anything else by repr."""
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
         return f"{value:g}"
     return repr(value)
@@ -28,7 +29,7 @@ def _fmt(value) -> str:
 def check_bandpass(low_hz, high_hz, taps, dt, prefix: str = "model.net") -> None:
     """Raise ValueError naming the key, the value and what is allowed."""
     def bad(key, value, allowed):
-        raise ValueError(f"{prefix}.{key} = {_fmt(value)} is not allowed: {allowed}")
+        raise ValueError(f"{prefix}.{key} = {format_value(value)} is not allowed: {allowed}")
 
     if not isinstance(dt, numbers.Real) or not dt > 0:
         bad("dt", dt, "must be > 0 (seconds; the data's time step)")

@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from hybrid_sysid.baselines.filters import _fmt, bandpass_taps, check_bandpass, fir_valid
+from hybrid_sysid.baselines.filters import format_value, bandpass_taps, check_bandpass, fir_valid
 from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
 from hybrid_sysid.physics import relative_states
 
@@ -79,9 +79,9 @@ class LeastSquaresEstimator:
     def __init__(self, span: str = "window", filter: str = "none", low_hz: float = 4.0, high_hz: float = 20.0,
                  taps: int = 151, dt: float = 0.005):
         if span not in SPANS:
-            raise ValueError(f"model.net.span = {_fmt(span)} is not allowed: one of {', '.join(SPANS)}")
+            raise ValueError(f"model.net.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
         if filter not in FILTERS:
-            raise ValueError(f"model.net.filter = {_fmt(filter)} is not allowed: one of {', '.join(FILTERS)}")
+            raise ValueError(f"model.net.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
         check_bandpass(low_hz, high_hz, taps, dt)  # checked even when unused, so a typo never waits
         self.span, self.filter = span, filter
         self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
