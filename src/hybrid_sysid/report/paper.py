@@ -20,8 +20,8 @@ import numpy as np
 import pandas as pd
 
 from hybrid_sysid.files import write_atomic
-from hybrid_sysid.report.protocol import protocol, run_choices, run_config
-from hybrid_sysid.report.summary import _collect, _resolve, _sort_key, row_keys
+from hybrid_sysid.report.collect import load_runs, natural_key, row_keys, run_choices, run_config
+from hybrid_sysid.report.protocol import protocol
 from hybrid_sysid.report.tables import K_LEVEL
 
 PAPER_STEPS = 500_000
@@ -136,7 +136,7 @@ def reproduction_table(df: pd.DataFrame, root: Path) -> pd.DataFrame:
                          "ours_sigma": g.std_rel_dev.mean(), "n_seeds": g.run.nunique()})
     objectives = list(OBJECTIVES) + sorted(set(done.objective) - set(OBJECTIVES))
     others = done[extra].drop_duplicates().itertuples(index=False, name=None) if extra else [()]
-    others = sorted(set(others), key=_sort_key)  # numbers in numeric order: K = 4 before K = 16
+    others = sorted(set(others), key=natural_key)  # numbers in numeric order: K = 4 before K = 16
     rows = []
     for split in SPLITS:
         for noise in NOISE_LEVELS:
@@ -329,10 +329,7 @@ def comparison_parts(df: pd.DataFrame, root: Path) -> tuple[str, str]:
 def reproduction_markdown(paths) -> str:
     """reproduction.md's text for the runs at or below paths: protocol (paper vs ours), the comparison table,
     where each paper figure is, and the reading."""
-    root, runs = _resolve(paths)
-    if not runs:
-        raise ValueError(f"paths={paths!r} hold no run")
-    df = _collect(root, runs)
+    root, df = load_runs(paths)
     proto = protocol(df, root)
     n_runs, n_done = df.run.nunique(), df[df.status == "completed"].run.nunique()
     shown = os.path.relpath(root) if root.is_relative_to(Path.cwd()) else str(root)

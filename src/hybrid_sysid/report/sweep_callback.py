@@ -18,6 +18,10 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
+from hybrid_sysid.report.paper import write_reproduction
+from hybrid_sysid.report.summary import write_summary
+from hybrid_sysid.report.tables import to_markdown
+
 log = logging.getLogger("hybrid_sysid")
 
 
@@ -27,15 +31,11 @@ class SweepSummary(Callback):
         self.split, self.metric, self.reproduction, self.latex = split, metric, reproduction, latex
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        from hybrid_sysid.report.summary import to_markdown, write_summary
-
         sweep_dir = Path(config.hydra.sweep.dir)
         df, table = write_summary(sweep_dir, split=self.split, metric=self.metric, latex=self.latex)
         print(f"\n{self.metric} on the {self.split} split [%], mean ± std over seeds ({sweep_dir}):\n")
         print(to_markdown(table))
         if self.reproduction:
-            from hybrid_sysid.report.paper import write_reproduction
-
             print(write_reproduction(sweep_dir))
             print(f"(written to {sweep_dir / 'reproduction.md'})")
         failed = df[df.status != "completed"].drop_duplicates("run")
