@@ -32,7 +32,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="the swept key whose rows the marks compare (default: objective when swept)")
     p.add_argument("--latex", action="store_true", help="also write summary.tex (a booktabs table)")
     p.add_argument("--reproduction", action="store_true",
-                   help="also write reproduction.md: the paper's figures beside ours, protocol and reading "
+                   help="also write reproduction.md: the paper's figures beside ours and both protocols "
                    "(with --results: a section per PATH in the page)")
     p.add_argument("--notes", type=Path, default=None, metavar="MD",
                    help="with --results: a hand-written markdown file (the reading of the tables) placed after "

@@ -4,7 +4,7 @@
 
 One section per sweep: its protocol in one line, the comparison table (marks and notes as in summary.md), the
 robustness figure (drawn from the same table into figures/ next to the page) and failed jobs; with
-``reproduction``, also the paper's figures beside ours and the reading of reproduction.md.
+``reproduction``, also the paper's figures beside ours, as in reproduction.md.
 """
 
 from __future__ import annotations
@@ -17,7 +17,7 @@ import pandas as pd
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_runs
-from hybrid_sysid.report.paper import LEGEND, comparison_parts
+from hybrid_sysid.report.paper import LEGEND, comparison_markdown
 from hybrid_sysid.report.protocol import one_line, protocol
 from hybrid_sysid.report.summary import failed_lines, windows_note
 from hybrid_sysid.report.tables import METRICS, summary_table, to_markdown
@@ -71,8 +71,7 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
         if failed:
             lines += ["Failed jobs:", "", *failed, ""]
         if reproduction:
-            table_md, reading = comparison_parts(df, root)
-            lines += ["### The paper's figures beside ours", "", table_md, LEGEND, "", reading, ""]
+            lines += ["### The paper's figures beside ours", "", comparison_markdown(df, root), LEGEND, ""]
     text = "\n".join(lines).rstrip("\n") + "\n"
     file.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(file, lambda p: p.write_text(text, encoding="utf-8"))
