@@ -24,8 +24,7 @@ from hybrid_sysid.report.protocol import protocol
 from hybrid_sysid.report.tables import K_LEVEL, markdown_table
 
 NOISE_LEVELS = (0.0, 0.01)  # the paper's: clean, and N(0, 0.01) added to both channels (sec. 3.3)
-SPLITS = ("train", "test")
-PARAMETERS = ("p1", "p2")
+PAPER_SPLITS = ("train", "test")  # it has no validation split
 OBJECTIVES = ("labelled", "hybrid")  # eq. 17 (J_L) and eq. 22 (J_U)
 
 
@@ -99,6 +98,7 @@ LEGEND = ("Paper: mu as printed (\"26-28\": the paper gives only that range; \"â
           "blank. Noise levels are standard deviations in m/s^2; our other levels, if any, are in summary.md. "
           f"For scale: the best constant prediction for the paper's seat masses scores {100 * constant_guess():.1f}% "
           "on either parameter.")
+PARAMETERS = tuple(dict.fromkeys(p for *_, p in PAPER))  # ("p1", "p2"), read off the table above
 _STATS = [f"{p} {s}" for p in PARAMETERS for s in ("mean", "sd", "sigma")]
 
 
@@ -108,7 +108,7 @@ def reproduction_table(df: pd.DataFrame, root: Path) -> pd.DataFrame:
     and we did not run; in the paper's order, its objectives first. Columns per parameter p: "p mean" and "p sd"
     (mean and sample std over seeds of each run's mean relative deviation), "p sigma" (mean over seeds of each
     run's std over recordings); and "seeds"."""
-    done = df[(df.status == "completed") & df.split.isin(SPLITS) & df.noise_std.isin(NOISE_LEVELS)].copy()
+    done = df[(df.status == "completed") & df.split.isin(PAPER_SPLITS) & df.noise_std.isin(NOISE_LEVELS)].copy()
     # a run that did not override the objective ran with its config-group choice
     given = done["objective"] if "objective" in done else pd.Series("", index=done.index)
     chosen = {r: run_choices(root / r).get("objective", "") for r in done.run[given == ""].unique()}
@@ -132,7 +132,7 @@ def reproduction_table(df: pd.DataFrame, root: Path) -> pd.DataFrame:
     rows = pd.concat(parts, ignore_index=True).reindex(columns=keys + _STATS + ["seeds"])
     objectives = list(OBJECTIVES) + sorted(set(rows.objective) - set(OBJECTIVES))
     order = sorted(range(len(rows)), key=lambda i: (
-        SPLITS.index(rows.split.iloc[i]), rows.noise_std.iloc[i], objectives.index(rows.objective.iloc[i]),
+        PAPER_SPLITS.index(rows.split.iloc[i]), rows.noise_std.iloc[i], objectives.index(rows.objective.iloc[i]),
         natural_key(tuple(rows[extra].iloc[i]))))
     return rows.iloc[order].reset_index(drop=True)
 

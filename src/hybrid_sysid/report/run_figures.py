@@ -1,42 +1,16 @@
 """Figures of one run, in the style of the paper's Figs. 6-29 (matplotlib, PNG, no screen needed), drawn from the
-run's predictions.csv and curves.csv; and the two drawing helpers the sweep figures share."""
+run's predictions.csv and curves.csv."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from hybrid_sysid.model.metrics import PARAMETERS  # noqa: E402
-
-
-def save_figure(fig, path: Path, title: str) -> None:
-    """Title, lay out, write as PNG and close."""
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")  # explicit: callers may write to a temporary name
-    plt.close(fig)
-
-
-def curves_figure(curves: pd.DataFrame, path: Path, title: str, y: str = "mean_rel_dev",
-                  ylabel: str = "mean relative deviation") -> None:
-    """One panel per parameter, one line per ``label`` (in order of first appearance): y against step, log y.
-    curves: columns label, parameter, step and y."""
-    params = sorted(curves["parameter"].unique()) or list(PARAMETERS)  # empty curves: empty panels, no crash
-    fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
-    for ax, param in zip(axes[0], params):
-        for label, line in curves[curves["parameter"] == param].groupby("label", sort=False):
-            ax.plot(line["step"], line[y], marker="o", ms=3, label=label)
-        ax.set(xlabel="step", ylabel=ylabel, title=param, yscale="log")
-        ax.grid(True, which="both", alpha=0.3)
-    if axes[0, 0].lines:
-        axes[0, 0].legend(fontsize="small")
-    save_figure(fig, path, title)
+from hybrid_sysid.model.metrics import PARAMETERS
+from hybrid_sysid.report.plotting import curves_figure, save_figure
 
 
 def predictions_figure(pred: pd.DataFrame, path: Path, title: str) -> None:

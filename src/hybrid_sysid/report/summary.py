@@ -10,8 +10,8 @@ import pandas as pd
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_runs, row_keys
-from hybrid_sysid.report.tables import K_LEVEL, METRICS, compared_level, row_label, summary_table, to_latex, \
-    to_markdown
+from hybrid_sysid.report.tables import (K_LEVEL, METRICS, compared_level, row_label, summary_table, to_latex,
+                                        to_markdown)
 
 
 def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
@@ -75,8 +75,9 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
             write_atomic(out / "robustness.png",
                          lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
         curves = _curves(df, root)
-        if len(curves):  # runs record curves on train and test only: other splits fall back to test
-            on = split if (curves["split"] == split).any() else "test"
+        # runs record curves on train and test only: other splits fall back to test
+        on = split if len(curves) and (curves["split"] == split).any() else "test"
+        if len(curves) and (curves["split"] == on).any():
             write_atomic(out / "learning_curves_compared.png",
                          lambda p: sweep_figures.learning_curves_compared(curves, p, metric=metric, split=on))
     return df, table

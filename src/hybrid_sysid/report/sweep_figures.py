@@ -8,7 +8,7 @@ import matplotlib.pyplot as plt
 import pandas as pd
 from matplotlib.ticker import NullLocator
 
-from hybrid_sysid.report.run_figures import curves_figure, save_figure
+from hybrid_sysid.report.plotting import curves_figure, save_figure
 from hybrid_sysid.report.tables import METRICS, row_label
 
 
