@@ -1,5 +1,5 @@
 """reproduction.md and the results page, from fake run records with known numbers: rows, placement of the
-paper's figures and ours (checked by hand here), protocol, reading, CLI flags, the callback and paper.yaml."""
+paper's figures and ours (checked by hand here), protocol, CLI flags, the callback and paper.yaml."""
 
 from pathlib import Path
 
@@ -8,10 +8,9 @@ import pytest
 from evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
 from omegaconf import OmegaConf
 
-from hybrid_sysid.report.paper import PAPER, constant_guess, reproduction_markdown, write_reproduction
+from hybrid_sysid.report.paper import constant_guess, reproduction_markdown, write_reproduction
 from hybrid_sysid.report.cli import main
 
-TEX = Path("/work/shared/paper/sokolowski2020_hybrid_objective.tex")
 CONFIG = {"data": {"n_roads": 100, "n_masses": 100, "n_steps": 6000, "dt": 0.001, "speed": 15.0, "window": 500,
                    "measurement": "consistent", "train_fraction": 0.8, "val_fraction": 0.125, "m3_min": 50,
                    "m3_max": 200},
@@ -49,26 +48,6 @@ def _make(sweep: Path, objectives=("labelled", "hybrid"), seeds=SEEDS, value=_va
 
 def _table(text: str) -> list[dict]:
     return parse_markdown(text[text.index("## Mean relative deviation"):])
-
-
-def test_paper_figures_are_on_the_cited_lines_of_the_tex():
-    if not TEX.exists():
-        pytest.skip("the paper's source is not on this machine")
-    lines = TEX.read_text().splitlines()
-    for (objective, split, noise, p), fig in PAPER.items():
-        line = lines[int(fig.where.rsplit("line ", 1)[1].rstrip(")")) - 1]
-        if fig.low is not None:
-            assert f"{100 * fig.low:.0f}-{100 * fig.high:.0f}\\%" in line
-        elif fig.approx:
-            assert f"around ${100 * fig.mean:.0f}\\%$" in line
-        else:  # "mu = 0.062 and ... sigma = 0.091", p1 first, p2 second on the line
-            i = 0 if p == "p1" else 1
-            assert line.count("\\mu =") == 2
-            assert line.split("\\mu = ")[1 + i].startswith(f"{fig.mean:.3f}")
-            assert line.split("\\sigma = ")[1 + i].startswith(f"{fig.std:.3f}")
-    # what the paper does not report stays missing
-    assert ("labelled", "train", 0.01, "p1") not in PAPER and PAPER[("hybrid", "test", 0.01, "p2")].std is None
-    assert {k[3] for k in PAPER} == {"p1", "p2"} and len(PAPER) == 12
 
 
 def test_rows_and_placement_of_paper_and_our_figures(tmp_path):
@@ -113,34 +92,18 @@ def test_protocol_header_reads_the_run_configs(tmp_path):
     assert header["optimiser"][1] == "adam, lr 0.001, constant schedule, batch 100"
     assert header["model"][1] == "paper_cnn (PaperCNN)" and header["test recordings"][1] == "2000"
     assert header["windows per test recording"][1] == "1"
-    assert "2,000 steps, 0.4% of the paper's 500,000" in text
+    assert header["seat masses"][1] == "m3 uniform on the integers 50-200 kg"
 
 
-@pytest.mark.parametrize("case, verdict", [
-    ("paper", "So these runs reproduce the paper's robustness result."),
-    ("opposite", "So these runs show the opposite of the paper's robustness result."),
-    ("close", "So these runs do not settle the paper's robustness result."),
-])
-def test_reading_tests_the_papers_claims_with_the_spread_rule(tmp_path, case, verdict):
-    def value(objective, split, noise, p, seed):
-        spread = 0.01 * (seed - 1)  # sample std 0.01 per objective
-        if noise == 0.0:
-            return {"labelled": 0.06, "hybrid": 0.09}[objective] + spread
-        hybrid_gap = {"paper": -0.1, "opposite": 0.1, "close": -0.015}[case]  # close: < 0.01 + 0.01
-        return 0.27 + (objective == "hybrid") * hybrid_gap + spread
-
-    text = reproduction_markdown(_make(tmp_path / "sw", value=value))
-    reading = text.split("## Reading", 1)[1]
-    assert verdict in reading
-    assert "labelled is lower on p1 and lower on p2 (beyond the seed spread)" in reading  # 0.03 > 0.02
-    assert "27.9%" in reading and "Caveats:" in reading and "ours is 1 ms" in reading
-
-
-def test_constant_guess_against_a_brute_force_search():
+def test_constant_guess_against_a_brute_force_search_and_no_generated_reading(tmp_path):
     m = np.arange(50, 201, dtype=float)
     grid = np.linspace(1 / 200, 1 / 50, 30001)
     brute = min(np.abs(1 - k * m).mean() for k in grid)
     assert constant_guess() == pytest.approx(brute, abs=1e-6) and constant_guess() <= brute
+    text = reproduction_markdown(_make(tmp_path / "sw"))
+    assert f"scores {100 * brute:.1f}% on either parameter" in text  # a reference figure for the reader
+    # the numbers side by side, no verdict drawn from them: the reading is written by hand
+    assert [ln for ln in text.splitlines() if ln.startswith("## ")] == ["## Protocol", "## Mean relative deviation [%]"]
 
 
 def test_failed_jobs_only_still_give_a_page(tmp_path):
@@ -248,6 +211,8 @@ def test_several_k_become_a_column_and_train_keeps_its_single_k(tmp_path):
     assert hybrid == [("train", "0", "1", "10.00 ± 0.00")] + [
         ("test", n, k, v) for n in ("0", "0.01")
         for k, v in (("1", "21.50 ± 0.71"), ("4", "24.50 ± 0.71"), ("16", "36.50 ± 0.71"))]  # K in numeric order
-    labelled = [(r["split"], r["K"], r["p1 paper"], r["p1 ours"]) for r in rows if r["objective"] == "labelled"]
-    assert ("test", "1", "6.0", "not run") in labelled and ("train", "1", "6.2", "not run") in labelled
-    assert "the figures quoted in this paragraph are those of K=1" in reproduction_markdown(tmp_path / "sw")
+    # the paper's labelled figures, not run here: one row each, not one per K
+    labelled = [(r["split"], r["noise std"], r["K"], r["p1 paper"], r["p1 ours"], r["seeds"]) for r in rows
+                if r["objective"] == "labelled"]
+    assert labelled == [("train", "0", "", "6.2", "not run", "0"), ("test", "0", "", "6.0", "not run", "0"),
+                        ("test", "0.01", "", "26-28", "not run", "0")]

@@ -1,15 +1,7 @@
-"""hybrid-sysid-report PATH...: rebuild the sweep tables and figures from run or sweep directories.
-
-    hybrid-sysid-report SWEEP                      summary.csv, summary.md, figures/ in SWEEP
-    hybrid-sysid-report SWEEP --latex              ... and summary.tex
-    hybrid-sysid-report SWEEP --reproduction       ... and reproduction.md: the paper's figures beside ours
-    hybrid-sysid-report SWEEP [SWEEP...] --results docs/results.md
-                                                   a results page, one section per SWEEP, figures in
-                                                   docs/figures/ (no summary files unless --out is given)
-
-Exit code: 0 if every run completed, 1 if any failed or is unreadable (everything is still written),
-2 if a path does not exist or holds no runs, or --compare names a key that is not swept.
-"""
+"""hybrid-sysid-report PATH...: rebuild a sweep's summary files and figures from run or sweep directories
+(merged), and with --reproduction the paper's figures beside ours; with --results, a results page instead (one
+section per PATH). Exit code: 0 if every run completed, 1 if any failed or is unreadable (everything is still
+written), 2 if a path does not exist or holds no runs, or --compare names a key that is not swept."""
 
 from __future__ import annotations
 
@@ -19,7 +11,11 @@ import sys
 from pathlib import Path
 
 from hybrid_sysid.records import RECORD
-from hybrid_sysid.report.summary import METRICS, find_runs, to_markdown, write_summary
+from hybrid_sysid.report.collect import find_runs
+from hybrid_sysid.report.paper import write_reproduction
+from hybrid_sysid.report.results_page import write_results
+from hybrid_sysid.report.summary import write_summary
+from hybrid_sysid.report.tables import METRICS, to_markdown
 
 PROG = "hybrid-sysid-report"
 
@@ -36,7 +32,7 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="the swept key whose rows the marks compare (default: objective when swept)")
     p.add_argument("--latex", action="store_true", help="also write summary.tex (a booktabs table)")
     p.add_argument("--reproduction", action="store_true",
-                   help="also write reproduction.md: the paper's figures beside ours, protocol and reading "
+                   help="also write reproduction.md: the paper's figures beside ours and both protocols "
                    "(with --results: a section per PATH in the page)")
     p.add_argument("--notes", type=Path, default=None, metavar="MD",
                    help="with --results: a hand-written markdown file (the reading of the tables) placed after "
@@ -47,18 +43,21 @@ def parse_args(argv=None) -> argparse.Namespace:
     return p.parse_args(argv)
 
 
+def _error(message: str) -> int:
+    print(f"{PROG}: error: {message}", file=sys.stderr)
+    return 2
+
+
 def main(argv=None) -> int:
+    argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     args = parse_args(argv)
     for path in args.paths:  # each path must contribute, so a typo is not silently merged away
         if not path.exists():
-            print(f"{PROG}: error: path does not exist: {path}", file=sys.stderr)
-            return 2
+            return _error(f"path does not exist: {path}")
         if not find_runs([path]):
-            print(f"{PROG}: error: no runs ({RECORD}) under {path}", file=sys.stderr)
-            return 2
+            return _error(f"no runs ({RECORD}) under {path}")
     if args.notes is not None and not args.notes.is_file():
-        print(f"{PROG}: error: --notes file does not exist: {args.notes}", file=sys.stderr)
-        return 2
+        return _error(f"--notes file does not exist: {args.notes}")
     bad = 0
     try:
         if args.results is None or args.out is not None:
@@ -68,8 +67,6 @@ def main(argv=None) -> int:
             print(to_markdown(table, compare=args.compare), end="")
             written = ["summary.csv", "summary.md"] + ["summary.tex"] * args.latex
             if args.reproduction:
-                from hybrid_sysid.report.paper import write_reproduction
-
                 print("\n" + write_reproduction(out, paths=args.paths), end="")
                 written.append("reproduction.md")
             runs = df.drop_duplicates("run")
@@ -77,26 +74,13 @@ def main(argv=None) -> int:
             print(f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/{', '.join(written)}, figures/",
                   file=sys.stderr)
         if args.results is not None:
-            from hybrid_sysid.report.results_page import write_results
-
-            command = " ".join([PROG, *map(shlex.quote, map(str, args.paths)), "--results",
-                                shlex.quote(str(args.results))] + ["--reproduction"] * args.reproduction
-                               + ([f"--compare {args.compare}"] if args.compare else [])
-                               + ([f"--split {args.split}"] if args.split != "test" else [])
-                               + ([f"--metric {args.metric}"] if args.metric != "mean_rel_dev" else [])
-                               + ([f"--notes {shlex.quote(str(args.notes))}"] if args.notes else []))
-            text, n, bad_results = write_results(args.results, args.paths, split=args.split, metric=args.metric,
-                                                 compare=args.compare, reproduction=args.reproduction,
-                                                 command=command, notes=args.notes)
+            text, n, n_bad = write_results(args.results, args.paths, command=shlex.join([PROG, *argv]),
+                                           split=args.split, metric=args.metric, compare=args.compare,
+                                           reproduction=args.reproduction, notes=args.notes)
             print(text, end="")
-            bad = max(bad, bad_results)
-            print(f"{n} runs, {bad_results} failed or unreadable; wrote {args.results} and "
+            bad = max(bad, n_bad)
+            print(f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and "
                   f"{args.results.parent / 'figures'}/", file=sys.stderr)
     except ValueError as exc:  # e.g. --compare naming a key that is not swept
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
+        return _error(str(exc))
     return 1 if bad else 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())

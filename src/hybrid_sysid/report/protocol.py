@@ -8,34 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-
-def _yaml(path: Path) -> dict:
-    try:
-        import yaml  # a dependency of omegaconf
-
-        out = yaml.safe_load(path.read_text())
-        return out if isinstance(out, dict) else {}
-    except Exception:  # noqa: BLE001 - a missing or damaged file only leaves the protocol less complete
-        return {}
-
-
-def run_config(run_dir: Path) -> dict:
-    """The run's composed config as Hydra saved it (interpolations unresolved), {} if absent."""
-    return _yaml(Path(run_dir) / ".hydra" / "config.yaml")
-
-
-def run_choices(run_dir: Path) -> dict:
-    """The config-group choices of the run (objective, model, data, ...), {} if absent."""
-    hydra = _yaml(Path(run_dir) / ".hydra" / "hydra.yaml").get("hydra") or {}
-    return (hydra.get("runtime") or {}).get("choices") or {}
-
-
-def _get(d: dict, dotted: str):
-    for part in dotted.split("."):
-        if not isinstance(d, dict) or part not in d:
-            return None
-        d = d[part]
-    return d
+from hybrid_sysid.report.collect import config_value, run_choices, run_config
 
 
 def _fmt(v) -> str:
@@ -47,7 +20,7 @@ def _fmt(v) -> str:
 
 
 def _describe(cfg: dict, choices: dict) -> dict[str, str | None]:
-    g = lambda k: _get(cfg, k)  # noqa: E731
+    g = lambda k: config_value(cfg, k)  # noqa: E731
     target = str(g("model.net._target_") or "").rsplit(".", 1)[-1]
     choice = choices.get("model")
     d = {"model": f"{choice} ({target})" if choice and target else choice or target or None}
@@ -61,10 +34,11 @@ def _describe(cfg: dict, choices: dict) -> dict[str, str | None]:
     if isinstance(g("data.dt"), (int, float)):
         d["dt"] = f"{1000 * g('data.dt'):g} ms"
     for key, label in (("data.speed", "speed"), ("data.window", "window"), ("data.measurement", "measurement"),
-                       ("noise.eval_std", "test noise std"), ("noise.train_std", "training noise std"),
-                       ("data.m3_min", "m3 min"), ("data.m3_max", "m3 max")):
+                       ("noise.eval_std", "test noise std"), ("noise.train_std", "training noise std")):
         if g(key) is not None:
             d[label] = _fmt(g(key)) + {"speed": " m/s", "window": " steps"}.get(label, "")
+    if g("data.m3_min") is not None:
+        d["seat masses"] = f"m3 uniform on the integers {g('data.m3_min')}-{g('data.m3_max')} kg"
     return d
 
 
@@ -84,7 +58,7 @@ def _range(values) -> str:
 
 
 def protocol(df: pd.DataFrame, root: Path) -> dict[str, str]:
-    """Label -> value over the completed runs of df (summary.collect's long form; run names relative to root):
+    """Label -> value over the completed runs of df (collect's long form; run names relative to root):
     the config fields above, plus steps, seeds, training seconds, test recordings and windows per recording."""
     runs = df[df.status == "completed"].drop_duplicates("run")
     described = [_describe(run_config(root / r), run_choices(root / r)) for r in runs.run]

@@ -1,18 +1,16 @@
-"""Figures of one run, in the style of the paper's Fig. 6-29 (matplotlib, PNG, no screen needed), drawn from the
+"""Figures of one run, in the style of the paper's Figs. 6-29 (matplotlib, PNG, no screen needed), drawn from the
 run's predictions.csv and curves.csv."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-
-from hybrid_sysid.model.metrics import PARAMETERS  # noqa: E402
+from hybrid_sysid.model.metrics import PARAMETERS
+from hybrid_sysid.report.plotting import curves_figure, save_figure
 
 
 def predictions_figure(pred: pd.DataFrame, path: Path, title: str) -> None:
@@ -31,30 +29,12 @@ def predictions_figure(pred: pd.DataFrame, path: Path, title: str) -> None:
         ax.hist(dev, bins=50, color="tab:blue")
         ax.set(xlabel=f"relative deviation of {name}", ylabel="count",
                title=f"mean {dev.mean():.2%}, std {dev.std():.2%}")
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-
-
-def learning_curves_figure(curves: pd.DataFrame, path: Path, title: str = "learning curves") -> None:
-    """Mean relative deviation against step, per parameter, one line per (split, noise level)."""
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
-    for ax, name in zip(axes, PARAMETERS):
-        sub = curves[curves["parameter"] == name]
-        for (split, std), g in sub.groupby(["split", "noise_std"], sort=True):
-            ax.plot(g["step"], g["mean_rel_dev"], marker="o", ms=3, label=f"{split}, noise {std:g}")
-        ax.set(xlabel="step", ylabel="mean relative deviation", title=name, yscale="log")
-        ax.grid(True, which="both", alpha=0.3)
-    axes[0].legend()
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    save_figure(fig, path, title)
 
 
 def write_run_figures(run_dir) -> None:
-    """figures/ of a run directory: test predictions per noise level and K, and the learning curves."""
+    """figures/ of a run directory: test predictions per noise level and K, and the learning curves (mean
+    relative deviation against step, one line per split and noise level)."""
     run_dir = Path(run_dir)
     predictions = pd.read_csv(run_dir / "predictions.csv")
     curves = pd.read_csv(run_dir / "curves.csv")
@@ -66,4 +46,6 @@ def write_run_figures(run_dir) -> None:
         title = f"test, noise std {std:g} m/s^2" + ("" if k == 1 else f", mean of {k} windows")
         predictions_figure(sub, figures / f"{name}.png", title)
     if len(curves):
-        learning_curves_figure(curves, figures / "learning_curves.png")
+        curves = curves.sort_values(["split", "noise_std", "step"], kind="stable")
+        labels = [f"{s}, noise {n:g}" for s, n in zip(curves["split"], curves["noise_std"])]
+        curves_figure(curves.assign(label=labels), figures / "learning_curves.png", "learning curves")

@@ -4,9 +4,9 @@ Hydra skips on_multirun_end when a job raised, and with the joblib launcher job 
 processes; so jobs record their own failure and return normally (see hybrid_sysid.app), and the summary here is
 built from the run records on disk alone. A sweep with a failed job still exits non-zero.
 
-Options (set under hydra.callbacks.sweep_summary in an experiment file, e.g. conf/experiment/paper.yaml):
-``reproduction: true`` also writes reproduction.md (the paper's figures beside ours); ``latex: true`` also
-writes summary.tex.
+One option, set under hydra.callbacks.sweep_summary (conf/experiment/paper.yaml does): ``reproduction: true``
+also writes reproduction.md, the paper's figures beside ours. Other splits, metrics and the LaTeX table are one
+``hybrid-sysid-report`` away.
 """
 
 from __future__ import annotations
@@ -18,24 +18,23 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
+from hybrid_sysid.report.paper import write_reproduction
+from hybrid_sysid.report.summary import write_summary
+from hybrid_sysid.report.tables import to_markdown
+
 log = logging.getLogger("hybrid_sysid")
 
 
 class SweepSummary(Callback):
-    def __init__(self, split: str = "test", metric: str = "mean_rel_dev", reproduction: bool = False,
-                 latex: bool = False):
-        self.split, self.metric, self.reproduction, self.latex = split, metric, reproduction, latex
+    def __init__(self, reproduction: bool = False):
+        self.reproduction = reproduction
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
-        from hybrid_sysid.report.summary import to_markdown, write_summary
-
         sweep_dir = Path(config.hydra.sweep.dir)
-        df, table = write_summary(sweep_dir, split=self.split, metric=self.metric, latex=self.latex)
-        print(f"\n{self.metric} on the {self.split} split [%], mean ± std over seeds ({sweep_dir}):\n")
+        df, table = write_summary(sweep_dir)
+        print(f"\nmean relative deviation on the test split [%], mean ± std over seeds ({sweep_dir}):\n")
         print(to_markdown(table))
         if self.reproduction:
-            from hybrid_sysid.report.paper import write_reproduction
-
             print(write_reproduction(sweep_dir))
             print(f"(written to {sweep_dir / 'reproduction.md'})")
         failed = df[df.status != "completed"].drop_duplicates("run")

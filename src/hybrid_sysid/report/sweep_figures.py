@@ -1,32 +1,15 @@
-"""Figures comparing the rows of a sweep summary (e.g. labelled vs hybrid): robustness and learning curves."""
+"""Figures comparing the rows of a sweep's table (e.g. labelled vs hybrid): robustness and learning curves."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib
+import matplotlib.pyplot as plt
+import pandas as pd
+from matplotlib.ticker import NullLocator
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from matplotlib.ticker import NullLocator  # noqa: E402
-import pandas as pd  # noqa: E402
-
-LABELS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
-
-
-def row_label(keys, values) -> str:
-    """'objective=hybrid, road=A'; 'all' for the single row of a sweep where nothing but the seed varies."""
-    keys, values = list(keys), [str(v) for v in values]
-    if keys == ["all"] and values == ["all"]:
-        return "all"
-    return ", ".join(f"{k}={v if v != '' else '(default)'}" for k, v in zip(keys, values)) or "all"
-
-
-def _save(fig, path: Path, title: str) -> None:
-    fig.suptitle(title)
-    fig.tight_layout()
-    fig.savefig(path, dpi=110, format="png")  # explicit: callers may write to a temporary name
-    plt.close(fig)
+from hybrid_sysid.report.plotting import curves_figure, save_figure
+from hybrid_sysid.report.tables import METRICS, row_label
 
 
 def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_dev", split: str = "test") -> None:
@@ -49,10 +32,10 @@ def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_d
         ax.set_xticks(x, [f"{n:g}" for n in x])  # ticks at the levels evaluated, not at decades
         ax.xaxis.set_minor_locator(NullLocator())
         ax.set_yscale("log")
-        ax.set(xlabel="noise std [m/s^2]", ylabel=LABELS.get(metric, metric), title=param)
+        ax.set(xlabel="noise std [m/s^2]", ylabel=METRICS[metric], title=param)
         ax.grid(True, which="both", alpha=0.3)
     axes[0, 0].legend(fontsize="small")
-    _save(fig, path, f"robustness: {split} split, mean ± std over seeds")
+    save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds")
 
 
 def learning_curves_compared(curves: pd.DataFrame, path: Path, metric: str = "mean_rel_dev",
@@ -62,17 +45,6 @@ def learning_curves_compared(curves: pd.DataFrame, path: Path, metric: str = "me
     parameter."""
     sub = curves[curves["split"] == split]
     noise = 0.0 if sub.empty or (sub["noise_std"] == 0).any() else sub["noise_std"].min()
-    sub = sub[sub["noise_std"] == noise]
-    mean = sub.groupby(["label", "parameter", "step"])[metric].mean()
-    params = sorted(curves["parameter"].unique())
-    fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
-    for ax, param in zip(axes[0], params):
-        for label in sorted(sub["label"].unique()):
-            if (label, param) in mean.index.droplevel("step"):
-                line = mean.loc[(label, param)]
-                ax.plot(line.index, line.to_numpy(), marker="o", ms=3, label=label)
-        ax.set(xlabel="step", ylabel=LABELS.get(metric, metric), title=param, yscale="log")
-        ax.grid(True, which="both", alpha=0.3)
-    if axes[0, 0].lines:
-        axes[0, 0].legend(fontsize="small")
-    _save(fig, path, f"learning curves: {split} split, noise {noise:g}, mean over seeds")
+    mean = sub[sub["noise_std"] == noise].groupby(["label", "parameter", "step"], as_index=False)[metric].mean()
+    curves_figure(mean, path, f"learning curves: {split} split, noise {noise:g}, mean over seeds", y=metric,
+                  ylabel=METRICS[metric])
