@@ -182,6 +182,11 @@ def test_run_without_network_raises_one_line(tiny_run, tmp_path):
     with pytest.raises(InputError, match=r"checkpoint .*best.ckpt cannot be read"):
         load_estimator(tmp_path)
     cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
+    cfg.model.net.channels = 16
+    OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
+    with pytest.raises(InputError, match=r"checkpoint .*last.ckpt does not fit the run's model.net \(hybrid_sysid"):
+        load_estimator(tmp_path, checkpoint=tiny_run / "checkpoints" / "last.ckpt")
+    cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
     cfg.model.net = {"_target_": "hybrid_sysid.baselines.LeastSquaresEstimator", "span": "window"}
     OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
     with pytest.raises(InputError, match=r"is a baseline \(model.net._target_ = hybrid_sysid.baselines.Least"):

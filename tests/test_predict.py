@@ -179,7 +179,7 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
                                     r"distinct starts of a 200-step window; allowed: 1 to 201"),
         ((run, inp, "resample=maybe"), r"resample = 'maybe' is not allowed: true or false"),
         ((run, inp, "dt=0"), r"dt = '0' is not allowed: a sampling interval > 0 in seconds"),
-        ((run, inp, "dt=0.0025"), r"dt = 0.0025 s disagrees with the time column's step of input = .*rec.csv "
+        ((run, inp, "dt=0.0025"), r"dt = 0.0025 s disagrees with the time step of recording 0 of input = .*rec.csv "
                                   r"\(0.005 s\); allowed: within 1%, or leave dt= out"),
         ((run, inp, "seed=3"), r"unknown key 'seed' in 'seed=3'; allowed keys: run, input, output, windows, "
                                r"resample, dt"),

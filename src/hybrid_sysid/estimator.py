@@ -81,7 +81,11 @@ def _network(cfg: DictConfig, path: Path) -> torch.nn.Module:
     except Exception as exc:  # torch raises several classes for a truncated or foreign file
         raise InputError(f"checkpoint {path} cannot be read ({type(exc).__name__}: {exc})") from None
     model = build_model(cfg)
-    model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
+    try:
+        model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
+    except RuntimeError as exc:  # another run's checkpoint: torch lists every mismatched key, one line each
+        raise InputError(f"checkpoint {path} does not fit the run's model.net ({cfg.model.net._target_}): "
+                         f"{str(exc).splitlines()[0]}") from None
     return model.net
 
 

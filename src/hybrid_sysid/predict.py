@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.estimator import InputError, load_estimator
+from hybrid_sysid.estimator import DT_RTOL, InputError, load_estimator
 from hybrid_sysid.files import write_atomic
 
 USAGE = ("usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true|false] "
@@ -114,14 +114,17 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
         body.append(g["body_acc"].to_numpy(np.float64))
         if "time" in g:
             steps.append((name, uniform_step(g["time"].to_numpy(np.float64), path, name)))
-    if not steps:
+    if dt is not None:  # it stands for every recording's rate: each must agree with it
+        for name, s in steps:
+            choose_dt(s, dt, path, f"the time step of recording {name!r}")
         return Recordings(seat, body, dt, names)
     (first, step), others = steps[0], steps[1:]
     for name, s in others:
-        if abs(s - step) > UNIFORM_RTOL * step:
-            raise InputError(f"input = {path}: recording {name!r} has a time step of {s:g} s, recording "
-                             f"{first!r} {step:g} s; allowed: one sample rate per file")
-    return Recordings(seat, body, choose_dt(step, dt, path, "the time column's step"), names)
+        if abs(s - step) > DT_RTOL * step:
+            raise InputError(f"input = {path}: recording {name!r} has a time step of {s:.9g} s, recording "
+                             f"{first!r} {step:.9g} s; allowed: one sample rate per file (within {DT_RTOL:g} "
+                             "relative; give dt= when the time stamps are rounded)")
+    return Recordings(seat, body, step, names)
 
 
 def numbers(column: pd.Series, path: Path) -> pd.Series:
