@@ -1,0 +1,214 @@
+"""load_estimator / Estimator.predict: a trained run estimates recordings as training evaluated it; K windows,
+resampling, the run's car, and bad input."""
+
+import shutil
+import subprocess
+import sys
+
+import numpy as np
+import pandas as pd
+import pytest
+from omegaconf import OmegaConf
+from scipy.optimize import curve_fit
+
+from hybrid_sysid.estimator import InputError, resample_to
+from hybrid_sysid.model.metrics import relative_deviation
+from hybrid_sysid.physics import road_profiles, simulate
+
+TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=200", "trainer.eval_every_n_steps=100",
+        "trainer.progress_bar=false"]
+C3, K3 = 615.0, 98935.0  # the paper's seat damper and spring (sec. 2.2)
+
+
+@pytest.fixture(scope="module")
+def tiny_run(tmp_path_factory):
+    """A FastCNN trained for 200 steps on data=tiny, its config saved as Hydra would. About 10% mean relative
+    deviation, against about 40% for a constant guess: enough to tell right input from wrong. The directory is
+    per session and train() skips a completed run, so test_predict.py reuses this one without training."""
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.config import CONF_DIR
+    from hybrid_sysid.train import train
+
+    base = tmp_path_factory.getbasetemp()
+    run_dir = base / "tiny_estimator_run"
+    overrides = [*TINY, f"data.cache_dir={base / 'tiny_estimator_cache'}"]
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=overrides)
+    train(cfg, run_dir, overrides)
+    (run_dir / ".hydra").mkdir(exist_ok=True)
+    OmegaConf.save(cfg, run_dir / ".hydra" / "config.yaml")
+    return run_dir
+
+
+@pytest.fixture(scope="module")
+def est(tiny_run):
+    from hybrid_sysid import load_estimator
+    return load_estimator(tiny_run)
+
+
+def recordings(n, n_steps, dt, seed=7, speed=15.0):
+    """n recordings simulated like the run's data (consistent measurement): seat, body (n, n_steps), true p."""
+    m3 = np.random.default_rng(seed).uniform(50, 200, n)
+    road = road_profiles(("ABCDE" * n)[:n], n_steps, dt, speed, rng=seed)
+    seat, body = simulate(road, m3, dt, measurement="consistent")
+    return seat, body, np.stack([C3 / m3, K3 / m3], axis=1)
+
+
+def test_predicts_what_training_evaluated(tiny_run, est):
+    """One window of a test recording gives the prediction train() wrote for it (its own evaluation path:
+    the data module's batch, the best checkpoint), so channels, dtype, scaling and mode all match."""
+    from hybrid_sysid.train import build_datamodule
+
+    dm = build_datamodule(est.config)
+    batch = dm.eval_batch("test")
+    written = pd.read_csv(tiny_run / "predictions.csv").query("split == 'test' and noise_std == 0")
+    seat_all, body_all = dm.dataset.seat_acc, dm.dataset.body_acc
+    w = est.window
+    for row, window in zip(batch["index"].numpy()[:6], batch["signals"][:6, 0].numpy()):
+        views = np.lib.stride_tricks.sliding_window_view(seat_all[row], w)
+        (start,) = np.flatnonzero((views == window).all(axis=1))
+        got = est.predict(seat_all[row, start:start + w], body_all[row, start:start + w], est.dt, windows=1)
+        want = written[written.recording == row].iloc[0]
+        assert got.p1.item() == pytest.approx(want.p1_pred, rel=1e-5)
+        assert got.p2.item() == pytest.approx(want.p2_pred, rel=1e-5)
+
+
+def test_k_windows_evenly_spaced_mean_and_std(est):
+    w = est.window
+    seat, body, _ = recordings(1, w + 60, est.dt)
+    got = est.predict(seat[0], body[0], est.dt, windows=3).iloc[0]
+    singles = pd.concat([est.predict(seat[0, s:s + w], body[0, s:s + w], est.dt, windows=1) for s in (0, 30, 60)])
+    for p in ("p1", "p2"):
+        assert got[p] == pytest.approx(singles[p].mean(), rel=1e-6)
+        assert got[f"{p}_std"] == pytest.approx(singles[p].std(ddof=0), rel=1e-5)
+    assert got.m3_from_p1 == pytest.approx(C3 / got.p1) and got.m3_from_p2 == pytest.approx(K3 / got.p2)
+    assert got.steps == w + 60 and got.windows == 3
+    assert est.predict(seat[0], body[0], est.dt, windows=61).windows.item() == 61  # every start, once
+    with pytest.raises(ValueError, match=r"windows = 62 is not allowed for recording 0: its 260 steps offer 61"):
+        est.predict(seat[0], body[0], est.dt, windows=62)
+
+
+def test_several_recordings_as_2d_array_or_list(est):
+    seat, body, _ = recordings(3, 300, est.dt)
+    table = est.predict(seat, body, est.dt, windows=4)
+    assert list(table.recording) == [0, 1, 2]
+    for i in range(3):
+        one = est.predict(seat[i], body[i], est.dt, windows=4)
+        assert table.iloc[i][["p1", "p2"]].to_numpy() == pytest.approx(one[["p1", "p2"]].to_numpy()[0], rel=1e-6)
+    ragged = est.predict([seat[0], seat[1, :250]], [body[0], body[1, :250]], est.dt, windows=4, names=["a", "b"])
+    assert list(ragged.recording) == ["a", "b"] and list(ragged.steps) == [300, 250]
+    assert ragged.p1.iloc[0] == pytest.approx(table.p1.iloc[0], rel=1e-6)
+
+
+def test_m3_uses_the_runs_car(tiny_run, est, tmp_path):
+    cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
+    cfg.car = {"c3": 600.0, "k3": 90000.0}
+    (tmp_path / ".hydra").mkdir()
+    OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
+    shutil.copytree(tiny_run / "checkpoints", tmp_path / "checkpoints")
+    from hybrid_sysid import load_estimator
+    other = load_estimator(tmp_path)
+    seat, body, _ = recordings(2, 300, est.dt)
+    got, paper = other.predict(seat, body, est.dt), est.predict(seat, body, est.dt)
+    assert got.p1.to_numpy() == pytest.approx(paper.p1.to_numpy())  # same network
+    assert got.m3_from_p1.to_numpy() == pytest.approx(600.0 / got.p1.to_numpy())
+    assert got.m3_from_p2.to_numpy() == pytest.approx(90000.0 / got.p2.to_numpy())
+
+
+def test_resampled_recording_estimated_nearly_as_well(est):
+    """The same roads and seats sampled at dt / 2 and resampled: within twice the native error, averaged over
+    ten recordings (a recording read at the wrong rate scales the time axis and misses by ~40% here)."""
+    n, steps = 10, 400
+    seat, body, true = recordings(n, steps, est.dt)
+    native = relative_deviation(est.predict(seat, body, est.dt)[["p1", "p2"]].to_numpy(), true).mean()
+    constant = relative_deviation(np.broadcast_to(np.exp(np.log(true).mean(axis=0)), true.shape), true).mean()
+    assert native < 0.5 * constant, "the model has not learned enough for this check to mean anything"
+    seat2, body2, _ = recordings(n, 2 * steps, est.dt / 2)
+    table = est.predict(seat2, body2, est.dt / 2, resample=True)
+    assert (table.steps == steps).all()
+    assert relative_deviation(table[["p1", "p2"]].to_numpy(), true).mean() < 2 * native
+
+
+@pytest.mark.parametrize("dt_from, n, expected", [(0.0025, 800, 400), (0.0025, 801, 401), (0.01, 200, 400),
+                                                  (0.004, 500, 400)])
+def test_resample_keeps_a_sine(dt_from, n, expected):
+    """A 7 Hz sine (inside the seat's 3.5-7 Hz resonance band) resampled to 5 ms keeps its amplitude and
+    frequency (least-squares fit of a sine) and has ceil(n * up / down) samples; its ends stay close too."""
+    dt_to, f0 = 0.005, 7.0
+    x = np.sin(2 * np.pi * f0 * np.arange(n) * dt_from + 0.7)
+    y = resample_to(x, dt_from, dt_to)
+    assert len(y) == expected
+    t = np.arange(len(y)) * dt_to
+    (amp, f, phase), _ = curve_fit(lambda t, a, f, ph: a * np.sin(2 * np.pi * f * t + ph), t[20:-20], y[20:-20],
+                                   p0=(0.9, 6.9, 0.6))
+    assert f == pytest.approx(f0, rel=1e-4) and amp == pytest.approx(1.0, abs=2e-3)
+    inside = t <= (n - 1) * dt_from  # an upsampled last sample lies past the input's end
+    assert np.abs(y - np.sin(2 * np.pi * f0 * t + 0.7))[inside].max() < 0.05
+
+
+def test_bad_input_raises_value_error_naming_it(est):
+    seat, body, _ = recordings(1, 300, est.dt)
+    with pytest.raises(ValueError, match=r"recording 0 has 150 steps; allowed: at least the run's data.window = 200"):
+        est.predict(seat[0, :150], body[0, :150], est.dt)
+    bad = seat[0].copy()
+    bad[17] = np.nan
+    with pytest.raises(ValueError, match=r"seat_acc of recording 0 holds nan at step 17: every value must be finite"):
+        est.predict(bad, body[0], est.dt)
+    with pytest.raises(ValueError, match=r"dt = 0.004 s differs from the run's data.dt = 0.005 s.*resample=true"):
+        est.predict(seat[0], body[0], 0.004)
+    with pytest.raises(ValueError, match=r"dt = 1e-08 s cannot be resampled to the run's data.dt = 0.005 s"):
+        est.predict(seat[0], body[0], 1e-8, resample=True)
+    with pytest.raises(ValueError, match=r"dt = -1 is not allowed: a finite sampling interval > 0"):
+        est.predict(seat[0], body[0], -1)
+    with pytest.raises(ValueError, match=r"windows = 0 is not allowed: an integer >= 1"):
+        est.predict(seat[0], body[0], est.dt, windows=0)
+    with pytest.raises(ValueError, match=r"recording 0: seat_acc has shape \(300,\) and body_acc \(299,\)"):
+        est.predict(seat[0], body[0, :299], est.dt)
+    with pytest.raises(ValueError, match=r"seat_acc has shape \(1, 1, 300\); allowed: 1-D"):
+        est.predict(seat[None], body[None], est.dt)
+
+
+def test_run_without_network_raises_one_line(tiny_run, tmp_path):
+    from hybrid_sysid import load_estimator
+    with pytest.raises(InputError, match=r"has no .hydra/config.yaml; allowed: a run directory"):
+        load_estimator(tmp_path)
+    (tmp_path / ".hydra").mkdir()
+    shutil.copy(tiny_run / ".hydra" / "config.yaml", tmp_path / ".hydra")
+    with pytest.raises(InputError, match=r"has no checkpoint .*best.ckpt or .*last.ckpt"):
+        load_estimator(tmp_path)
+    (tmp_path / "checkpoints").mkdir()
+    (tmp_path / "checkpoints" / "best.ckpt").write_text("not a checkpoint")
+    with pytest.raises(InputError, match=r"checkpoint .*best.ckpt cannot be read"):
+        load_estimator(tmp_path)
+    cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
+    cfg.model.net.channels = 16
+    OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
+    with pytest.raises(InputError, match=r"checkpoint .*last.ckpt does not fit the run's model.net \(hybrid_sysid"):
+        load_estimator(tmp_path, checkpoint=tiny_run / "checkpoints" / "last.ckpt")
+    cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
+    cfg.model.net = {"_target_": "hybrid_sysid.baselines.LeastSquaresEstimator", "span": "window"}
+    OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
+    with pytest.raises(InputError, match=r"is a baseline \(model.net._target_ = hybrid_sysid.baselines.Least"):
+        load_estimator(tmp_path)
+
+
+def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
+    from hybrid_sysid import load_estimator
+    (tmp_path / ".hydra").mkdir()
+    shutil.copy(tiny_run / ".hydra" / "config.yaml", tmp_path / ".hydra")
+    (tmp_path / "checkpoints").mkdir()
+    shutil.copy(tiny_run / "checkpoints" / "last.ckpt", tmp_path / "checkpoints")
+    fallback, last = load_estimator(tmp_path), load_estimator(tiny_run, checkpoint="last")
+    for a, b in zip(fallback.net.state_dict().values(), last.net.state_dict().values()):
+        assert (a == b).all()
+
+
+@pytest.mark.integration
+def test_importing_physics_does_not_load_torch():
+    code = ("import sys, hybrid_sysid.physics; assert 'torch' not in sys.modules, 'torch loaded'; "
+            "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "
+            "import hybrid_sysid; getattr(hybrid_sysid, 'nothing')")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert "AttributeError: module 'hybrid_sysid' has no attribute 'nothing'" in done.stderr
+    assert "torch loaded" not in done.stderr
