@@ -3,8 +3,9 @@
 Layers, each importing only those before it: ``physics`` (plain numpy), ``data`` (cached datasets, the split by
 road, the LightningDataModule), ``model`` (CNNs, objectives, LightningModule, metrics) and ``baselines`` (least
 squares without a network), training (``config``, ``train``, ``records``), ``report`` (summaries, tables,
-figures, the ``hybrid-sysid-report`` command), ``app`` (the Hydra app behind ``hybrid-sysid``). ``files`` holds
-the atomic writer any layer may use. docs/design.md describes each.
+figures, the ``hybrid-sysid-report`` command), ``app`` (the Hydra app behind ``hybrid-sysid``); beside the last
+two, ``estimator`` (a trained run as a tool: ``load_estimator``) and ``predict`` (the ``hybrid-sysid-predict``
+command). ``files`` holds the atomic writer any layer may use. docs/design.md describes each.
 """
 
 __version__ = "0.1.0"
