@@ -15,6 +15,8 @@ import torch
 from hybrid_sysid.model import FastCNN, HybridObjective, LabelledObjective
 from hybrid_sysid.model.module import ParameterEstimator
 
+from paper_prior import P_MAX, P_MIN, P_SCALE
+
 STEPS = 6
 
 
@@ -24,10 +26,10 @@ def batches(batch_factory):
             for i in range(STEPS)]
 
 
-@pytest.mark.parametrize("objective", [LabelledObjective, HybridObjective])
+@pytest.mark.parametrize("objective", [lambda: LabelledObjective(P_SCALE), HybridObjective], ids=["labelled", "hybrid"])
 def test_trainer_steps_equal_a_plain_loop(batches, objective, tmp_path):
     torch.manual_seed(0)
-    model = ParameterEstimator(FastCNN(channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
+    model = ParameterEstimator(FastCNN(P_MIN, P_MAX, channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
                                max_steps=STEPS)
     plain = copy.deepcopy(model)
 
