@@ -1,9 +1,9 @@
 """The Trainer path takes exactly the optimisation steps of a plain PyTorch loop.
 
-ParameterEstimator writes its step out (manual optimisation), so nothing in Lightning zeroes gradients or steps
-the learning-rate schedule for it: a forgotten scheduler step or a doubled optimizer step would leave the run
-training, only differently. The reference here is the loop any PyTorch user would write, with torch's own
-OneCycleLR, on the same batches from the same initial weights.
+Lightning's automatic optimisation zeroes the gradients, steps the optimiser and, with the schedule's
+``interval: step``, the learning-rate schedule: a schedule stepped per epoch instead, or a doubled optimiser
+step, would leave the run training, only differently. The reference here is the loop any PyTorch user would
+write, with torch's own OneCycleLR, on the same batches from the same initial weights.
 """
 
 import copy

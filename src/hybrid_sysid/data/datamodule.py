@@ -104,7 +104,9 @@ class RandomWindows(IterableDataset):
 class QCMDataModule(L.LightningDataModule):
     """Simulated (or cached) quarter-car recordings cut into windows.
 
-    Training: random windows drawn afresh every epoch, optional noise ``train_std``.
+    Training: an endless stream of random windows (``RandomWindows``), optional noise ``train_std``; its
+    position is the data module's state in a checkpoint, so a resumed run draws the batches an uninterrupted
+    one would.
     Evaluation: one fixed, seeded window per recording (or K of them: ``eval_batch(windows=K)``); Gaussian
     noise of each std in ``eval_std`` added to both channels, from one seeded standard-normal draw per split
     scaled to each level (so levels differ only in size, which keeps robustness curves smooth).
@@ -138,6 +140,7 @@ class QCMDataModule(L.LightningDataModule):
         self.eval_std, self.train_std, self.seed = [float(s) for s in eval_std], float(train_std), seed
         self.dataset: QCMDataset | None = None
         self.data: QCMData | None = None
+        self.train_windows: RandomWindows | None = None
         self._eval_cache: dict = {}
 
     def prepare_data(self) -> None:
@@ -223,6 +226,19 @@ class QCMDataModule(L.LightningDataModule):
         n = len(full["index"])
         chunks = [{k: v[i:i + self.eval_batch_size] for k, v in full.items()} for i in range(0, n, self.eval_batch_size)]
         return DataLoader(chunks, batch_size=None)
+
+    def state_dict(self) -> dict:
+        """Saved in checkpoints: how many training batches the run has taken, one per optimiser step
+        (``accumulate_grad_batches`` with gradient accumulation)."""
+        if self.trainer is None:
+            return {}
+        return {"train_batches": self.trainer.global_step * self.trainer.accumulate_grad_batches}
+
+    def load_state_dict(self, state_dict: dict) -> None:
+        """Restored from a checkpoint before training starts: the stream continues where the run left it."""
+        if "train_batches" in state_dict:
+            self.setup("fit")
+            self.train_windows.resume_at(state_dict["train_batches"])
 
     def transfer_batch_to_device(self, batch, device, dataloader_idx):
         # batches are built on the CPU; Lightning's default walks every batch to move it nowhere (~0.1 ms a step)
