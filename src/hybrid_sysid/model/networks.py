@@ -68,11 +68,11 @@ class FastCNN(nn.Module):
     The defaults (32 channels, kernel 9) were chosen for accuracy per CPU second of training on data=default:
     more channels cost more per step than they gained. ``downsample="stride"`` (a stride-2 convolution) halves
     the sequence in each layer instead of a stride-1 convolution followed by MaxPool(2) (``"pool"``): it computes
-    half the convolution outputs and skips max pooling, so a step costs about half, and although it learns a
-    little less per step it is ahead per second of training. BatchNorm, ReLU, max and mean pooling are
-    deterministic on the CPU. ``bn_momentum`` 0.01 (torch's default is 0.1) averages the running statistics over
-    ~100 batches, so the eval-mode statistics, and with them the test error, do not follow the last few
-    training batches.
+    half the convolution outputs and skips max pooling, so a step costs less, and although it learns a little
+    less per step it is ahead per second of training. BatchNorm, ReLU, max and mean pooling are deterministic
+    on the CPU. ``bn_momentum`` 0.01 (torch's default is 0.1) averages the running statistics over ~100
+    batches, so the eval-mode statistics, and with them the test error, do not follow the last few training
+    batches.
     """
 
     def __init__(self, p_min: Sequence[float], p_max: Sequence[float], in_channels: int = 2, channels: int = 32,
