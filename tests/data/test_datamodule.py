@@ -27,7 +27,8 @@ def dm():
 def window_start(dm, row, seat_window):
     """Where in the recording this window was cut (exact float32 match)."""
     full = dm.dataset.seat_acc[row]
-    starts = [s for s in range(len(full) - len(seat_window) + 1) if np.array_equal(full[s:s + len(seat_window)], seat_window)]
+    n = len(seat_window)
+    starts = [s for s in range(len(full) - n + 1) if np.array_equal(full[s:s + n], seat_window)]
     assert len(starts) == 1
     return starts[0]
 
