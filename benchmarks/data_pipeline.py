@@ -6,7 +6,7 @@ On the default data (the run's config), each way cuts the same (recording, start
 500 from the four float32 channels (seat, body, relative velocity and displacement) and must give identical
 tensors:
 - a per-sample Python loop (arr[row, start:start + window] for each sample, stacked): the obvious way;
-- torch advanced indexing with a (batch, window) column index, which the project used before;
+- torch advanced indexing with a (batch, window) column index, the other vectorised way;
 - the project: one numpy index into a sliding-window view per channel (hybrid_sysid.data.datamodule).
 Then the whole training batch as Lightning receives it (next() on the data module's train loader: window
 draw, cropping, the dict), against the median step of a default training run from the benchmarks README.
@@ -21,8 +21,8 @@ import numpy as np
 import torch
 from hydra import compose, initialize_config_dir
 
-from hybrid_sysid.data.datamodule import _gather
 from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.data.datamodule import gather
 from hybrid_sysid.train import build_datamodule
 
 
@@ -38,7 +38,7 @@ def torch_advanced_index(tensors, rows, starts, window):
 
 
 def project(views, rows, starts, window):
-    return [_gather(v, rows, starts) for v in views]
+    return [gather(v, rows, starts) for v in views]
 
 
 def median_us(fn, n):

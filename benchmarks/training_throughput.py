@@ -1,5 +1,6 @@
 """Training throughput: the same model, batches and steps through a plain PyTorch loop and through the
-project's Trainer path (ParameterEstimator + QCMDataModule + lightning.Trainer), timed in one script.
+project's Trainer path (ParameterEstimator with Lightning's automatic optimisation + QCMDataModule + the run's
+lightning.Trainer and training clock), timed in one script.
 
     python benchmarks/training_throughput.py [--steps 600] [--tiny] [overrides...]               # interleaved
     python benchmarks/training_throughput.py --rounds 20 [--steps 60] [--tiny] [overrides...]    # rounds
@@ -28,8 +29,9 @@ import torch
 from hydra import compose, initialize_config_dir
 from hydra.utils import instantiate
 
-from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.callbacks import TrainingClock
 from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.model.module import ParameterEstimator
 from hybrid_sysid.train import build_datamodule, build_model, build_trainer
 
 
@@ -135,8 +137,8 @@ def interleaved(cfg, dm, steps):
     L.seed_everything(cfg.seed)
     model = MAKE_MODEL[0](cfg)
     with tempfile.TemporaryDirectory() as tmp:
-        trainer = build_trainer(cfg, tmp, [callback], max_steps=steps + callback.warmup, limit_val_batches=0,
-                                enable_checkpointing=False)
+        trainer = build_trainer(cfg, tmp, [TrainingClock(), callback], max_steps=steps + callback.warmup,
+                                limit_val_batches=0, enable_checkpointing=False)
         trainer.fit(model, datamodule=dm)
     plain = np.array(callback.plain)
     # from one batch start to the next, less the plain step our callback ran in between
@@ -149,8 +151,8 @@ def trainer_path(cfg, dm, steps):
     model = MAKE_MODEL[0](cfg)
     timer = StepTimer()
     with tempfile.TemporaryDirectory() as tmp:  # the run's own Trainer, minus validation and checkpoints
-        trainer = build_trainer(cfg, tmp, [timer], max_steps=steps + timer.warmup, limit_val_batches=0,
-                                enable_checkpointing=False)
+        trainer = build_trainer(cfg, tmp, [TrainingClock(), timer], max_steps=steps + timer.warmup,
+                                limit_val_batches=0, enable_checkpointing=False)
         trainer.fit(model, datamodule=dm)
     return np.diff(timer.stamps)
 

@@ -34,6 +34,8 @@ BAD = [
                                    r"\[1, data.n_steps - data.window \+ 1 = 701\]"),
     (["evaluation.windows=[]"], r"evaluation.windows = \[\] is not allowed: a non-empty list of integers K"),
     (["data=tiny", "evaluation.windows=[202]"], r"evaluation.windows = \[202\] is not allowed: .* = 201\]"),
+    (["car.c3=-1"], r"car.c3 = -1.0 is not allowed: must be finite and > 0"),
+    (["+car.c4=1"], r"car.c4 = 1.0 is not allowed: unknown; the car's constants are m1, m2, k1, k2, k3, c2, c3"),
 ]
 
 

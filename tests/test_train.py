@@ -2,11 +2,13 @@
 
 import json
 
+import numpy as np
 import pandas as pd
 import pytest
+import torch
 
 from hybrid_sysid.report.run_figures import write_run_figures
-from hybrid_sysid.train import train
+from hybrid_sysid.train import build_model, train
 
 TINY = ["data=tiny", "trainer=debug", "noise.eval_std=[0.0,0.05]"]
 
@@ -92,3 +94,29 @@ def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):
     assert record["error"].startswith("FloatingPointError: training loss is nan at step")
     step = int(record["error"].split("at step ")[1].split(";")[0])
     assert step < 20  # stopped at once, not at max_steps
+
+
+# (C3, K3) of the paper's car: 615 Ns/m, 98935 N/m (sec. 2.2); seat masses 50-200 kg by default
+@pytest.mark.parametrize("overrides, c3, k3, m3_min, m3_max", [
+    ([], 615.0, 98935.0, 50, 200),
+    (["car.c3=700"], 700.0, 98935.0, 50, 200),
+    (["car.k3=90000", "data.m3_min=80"], 615.0, 90000.0, 80, 200),
+    (["data.m3_max=150"], 615.0, 98935.0, 50, 150),
+])
+def test_the_prior_follows_the_car_and_the_mass_range(make_cfg, overrides, c3, k3, m3_min, m3_max):
+    p_min, p_max = np.array([c3, k3]) / m3_max, np.array([c3, k3]) / m3_min
+    scale = torch.tensor((p_min + p_max) / 2, dtype=torch.float32)
+    model = build_model(make_cfg(*overrides))  # fast_cnn, labelled
+    torch.testing.assert_close(model.objective.p_scale, scale)
+    head = model.net.head
+    widen = (p_max / p_min) ** 0.1  # FastCNN's default margin: a tenth of the log range on each side
+    for bias, bound in ((-50.0, p_min / widen), (50.0, p_max * widen)):  # a saturated head gives the bound
+        with torch.no_grad():
+            head.weight.zero_()
+            head.bias.fill_(bias)
+        out = model.net(torch.randn(2, 2, 500)).detach().numpy()
+        np.testing.assert_allclose(out, np.tile(bound, (2, 1)), rtol=1e-5)
+
+    paper = build_model(make_cfg(*overrides, "model=paper_cnn", "objective=combined"))
+    torch.testing.assert_close(paper.net.p_scale, scale)
+    torch.testing.assert_close(paper.objective.labelled.p_scale, scale)

@@ -7,7 +7,8 @@ naming the key, the value and what is allowed.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import math
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, Dict, List, Optional
 
@@ -86,7 +87,7 @@ class TrainerConfig:
 @dataclass
 class EvaluationConfig:
     # K values: for each K and test noise level, average the predictions on K fixed, seeded windows per
-    # recording (K = 1: the single window of earlier versions, same numbers)
+    # recording (K = 1: one window)
     windows: List[int] = field(default_factory=lambda: [1])
 
 
@@ -101,14 +102,29 @@ class Config:
     objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
     trainer: TrainerConfig = MISSING
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
-    car: Dict[str, float] = field(default_factory=dict)  # QuarterCar overrides, e.g. car.c3=600
+    # the car's constants (QuarterCar's fields, its values by default), e.g. car.c3=700
+    car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
+
+
+def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
+    """``${p_prior:min}``, ``${p_prior:max}`` or ``${p_prior:scale}`` in the model and objective configs: the
+    prior range of p = (C3, K3) / m3 for the config's car and seat masses, from p_min = (C3, K3) / data.m3_max to
+    p_max = (C3, K3) / data.m3_min, or its midpoint (the label scale). Derived here, once, so an override of the
+    car or of the mass range moves the networks' bounds and the labelled objective's scale with the data."""
+    spec = dataset_spec(_root_)
+    p_min, p_max = spec.car.parameters(spec.m3_max), spec.car.parameters(spec.m3_min)
+    pairs = {"min": p_min, "max": p_max, "scale": [(a + b) / 2 for a, b in zip(p_min, p_max)]}
+    if which not in pairs:
+        _bad("p_prior", which, f"one of {', '.join(pairs)}")
+    return [float(v) for v in pairs[which]]
 
 
 def register() -> None:
-    """The schema for Hydra, and the resolver the run directory uses: hydra.run.dir is ``resume`` when given,
-    else a new time-stamped directory."""
+    """The schema for Hydra and two resolvers: ``p_prior`` (above), and ``first_set`` for the run directory
+    (hydra.run.dir is ``resume`` when given, else a new time-stamped directory)."""
     ConfigStore.instance().store(name="schema", node=Config)
     OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
+    OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)
 
 
 def dataset_spec(cfg: DictConfig) -> DatasetSpec:
@@ -120,6 +136,9 @@ def dataset_spec(cfg: DictConfig) -> DatasetSpec:
                        car=QuarterCar(**cfg.get("car", {})))
 
 
+CAR_FIELDS = tuple(asdict(QuarterCar()))
+
+
 def _bad(key: str, value, allowed: str):
     raise ConfigError(f"{key} = {value!r} is not allowed: {allowed}")
 
@@ -127,6 +146,11 @@ def _bad(key: str, value, allowed: str):
 def validate(cfg: DictConfig) -> None:
     """Every range check, before any work. Checks that need the physics (stability) use its own functions."""
     d, t, o = cfg.data, cfg.trainer, cfg.model.optim
+    for key, value in cfg.car.items():
+        if key not in CAR_FIELDS:
+            _bad(f"car.{key}", value, f"unknown; the car's constants are {', '.join(CAR_FIELDS)}")
+        if not (math.isfinite(value) and value > 0):
+            _bad(f"car.{key}", value, "must be finite and > 0")
     try:
         dataset_spec(cfg).validate()
         split_by_road(d.n_roads, d.n_masses, d.train_fraction, d.val_fraction)

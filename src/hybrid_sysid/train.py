@@ -8,19 +8,17 @@ from __future__ import annotations
 
 import json
 import logging
-import os
-import sys
 import time
 from pathlib import Path
 
 import lightning as L
-import numpy as np
 import pandas as pd
 import torch
 from hydra.utils import instantiate
 from omegaconf import DictConfig
 
 from hybrid_sysid.baselines import is_baseline
+from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, TrainingClock
 from hybrid_sysid.config import dataset_spec, validate
 from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.model.metrics import summarise
@@ -28,7 +26,7 @@ from hybrid_sysid.model.module import ParameterEstimator
 from hybrid_sysid.records import RECORD, run_record, write_json_atomic
 
 log = logging.getLogger("hybrid_sysid")
-CURVE_COLUMNS = ["step", "seconds", "split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]
+
 
 def build_datamodule(cfg: DictConfig) -> QCMDataModule:
     d = cfg.data
@@ -37,13 +35,15 @@ def build_datamodule(cfg: DictConfig) -> QCMDataModule:
                          eval_std=list(cfg.noise.eval_std), train_std=cfg.noise.train_std, seed=cfg.seed)
 
 
-def build_model(cfg: DictConfig, curve_sets=()) -> ParameterEstimator:
+def build_model(cfg: DictConfig) -> ParameterEstimator:
+    """The network and the objective of the config (their prior of p comes from the car and the mass range:
+    ``${p_prior:...}``, hybrid_sysid.config) in a ParameterEstimator."""
     net = instantiate(cfg.model.net, _convert_="all")
     objective = instantiate(cfg.objective, _convert_="all")
     o = cfg.model.optim
     return ParameterEstimator(net, objective, optimizer=o.name, lr=o.lr, weight_decay=o.weight_decay,
                               schedule=o.schedule, max_steps=cfg.trainer.max_steps,
-                              warmup_fraction=o.get("warmup_fraction", 0.3), curve_sets=tuple(curve_sets))
+                              warmup_fraction=o.warmup_fraction)
 
 
 def build_trainer(cfg: DictConfig, run_dir, callbacks=(), **overrides) -> L.Trainer:
@@ -139,13 +139,14 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     windows = [int(k) for k in cfg.evaluation.windows]
     if is_baseline(cfg.model.net._target_):
         return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows)
-    curve_sets = [("train", 0.0)] + [("test", s) for s in noise_levels]
-    model = build_model(cfg, curve_sets)
+    model = build_model(cfg)
     monitor = monitor_of(cfg, model.objective)
 
     ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
                                                mode="min", save_last=True, auto_insert_metric_name=False)
-    trainer = build_trainer(cfg, run_dir, [ckpt])
+    clock = TrainingClock()
+    curves = LearningCurves(clock, noise_levels)
+    trainer = build_trainer(cfg, run_dir, [clock, curves, ckpt])
     dm.setup("fit")
     last = run_dir / "checkpoints" / "last.ckpt"
     if last.exists():
@@ -153,13 +154,13 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     start = time.perf_counter()
     trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last.exists() else None)
     fit_seconds = time.perf_counter() - start
-    train_seconds = model.trained_seconds  # periodic evaluations excluded, resumed sessions included
+    train_seconds = clock.seconds  # evaluations excluded, the time before a resume included
 
     if ckpt.best_model_path:
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
         model.load_state_dict(state)
     results, predictions = evaluate(model, dm, noise_levels, windows)
-    write_outputs(run_dir, predictions, pd.DataFrame(model.curve_rows))
+    write_outputs(run_dir, predictions, pd.DataFrame(curves.rows, columns=CURVE_COLUMNS))
 
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
                         results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,

@@ -1,5 +1,8 @@
 """Windows, noise and batches of the data module."""
 
+from itertools import islice
+from types import SimpleNamespace
+
 import numpy as np
 import pytest
 import torch
@@ -24,7 +27,8 @@ def dm():
 def window_start(dm, row, seat_window):
     """Where in the recording this window was cut (exact float32 match)."""
     full = dm.dataset.seat_acc[row]
-    starts = [s for s in range(len(full) - len(seat_window) + 1) if np.array_equal(full[s:s + len(seat_window)], seat_window)]
+    n = len(seat_window)
+    starts = [s for s in range(len(full) - n + 1) if np.array_equal(full[s:s + n], seat_window)]
     assert len(starts) == 1
     return starts[0]
 
@@ -95,3 +99,21 @@ def test_training_noise_is_added_when_asked():
     noisy = next(iter(make(seed=3, train_std=0.05).train_dataloader()))
     assert torch.equal(clean["index"], noisy["index"])
     assert (noisy["signals"] - clean["signals"]).std().item() == pytest.approx(0.05, rel=0.1)
+
+
+@pytest.mark.parametrize("steps, accumulate", [(4, 1), (2, 3)])
+def test_a_resumed_stream_continues_where_the_checkpoint_left_it(steps, accumulate):
+    # the state a checkpoint saves after `steps` optimiser steps of `accumulate` batches each, loaded into a
+    # fresh data module: its stream goes on with the batches the uninterrupted one draws next
+    a = make(seed=4)
+    assert a.state_dict() == {}  # outside a Trainer there is no position to save
+    a.trainer = SimpleNamespace(global_step=steps, accumulate_grad_batches=accumulate)
+    taken = steps * accumulate
+    assert taken > a.train_windows.batches_per_pass  # resumed in a later pass than the first
+    uninterrupted = list(islice(iter(a.train_dataloader()), taken + 3))
+    b = make(seed=4)
+    b.load_state_dict(a.state_dict())
+    resumed = list(islice(iter(b.train_dataloader()), 3))
+    for want, got in zip(uninterrupted[taken:], resumed):
+        assert torch.equal(got["index"], want["index"]) and torch.equal(got["signals"], want["signals"])
+    assert not torch.equal(resumed[0]["signals"], uninterrupted[0]["signals"])

@@ -1,5 +1,5 @@
-"""K evaluation windows per recording: K = 1 is the old single window, K > 1 windows are distinct, seeded, and
-a model's predictions on them are averaged per recording."""
+"""K evaluation windows per recording: K = 1 is one seeded window per recording, K > 1 windows are distinct,
+seeded, and a model's predictions on them are averaged per recording."""
 
 import numpy as np
 import pandas as pd
@@ -7,7 +7,7 @@ import pytest
 import torch
 from torch import nn
 
-from hybrid_sysid.data import SPLITS, DatasetSpec
+from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.model.module import ParameterEstimator
 
@@ -25,15 +25,6 @@ def dm():
     return make()
 
 
-def old_eval_batch(dm, split, noise_std):
-    """The evaluation batch as the data module cut it before K existed (copied from that version)."""
-    rows = dm.rows(split)
-    rng = np.random.default_rng([dm.seed, SPLITS.index(split)])
-    starts = rng.integers(0, dm.data.n_steps - dm.window + 1, size=len(rows))
-    base = rng.standard_normal((len(rows), 2, dm.window)) if noise_std > 0 else None
-    return dm.data.batch(rows, starts, None if base is None else noise_std * base)
-
-
 def starts_of(dm, batch):
     """Where each window of the batch was cut from its recording (clean batches: exact float32 match)."""
     out = []
@@ -45,13 +36,46 @@ def starts_of(dm, batch):
     return np.array(out)
 
 
+def relative_states_by_loop(seat, body, dt):
+    """Symplectic Euler from rest, step by step (v_k from a_0..a_{k-1}, x_k = x_{k-1} + dt v_k), then the
+    consistent pairing with the body's velocity one step on: rel_vel_k - dt y''_k (docs/design.md)."""
+    vel, disp = np.zeros_like(seat), np.zeros_like(seat)
+    v, x = np.zeros(len(seat)), np.zeros(len(seat))
+    for k in range(seat.shape[1]):
+        x = x + dt * v
+        vel[:, k], disp[:, k] = v - dt * body[:, k], x
+        v = v + dt * (seat[:, k] - body[:, k])
+    return vel, disp
+
+
 @pytest.mark.parametrize("split, std", [("val", 0.0), ("test", 0.0), ("test", 0.01), ("train", 0.1)])
-def test_k1_is_the_previous_evaluation_bit_for_bit(dm, split, std):
-    want = old_eval_batch(dm, split, std)
-    for got in (dm.eval_batch(split, std), make().eval_batch(split, std, windows=1)):
-        assert got.keys() == want.keys()
-        for key in want:
-            assert torch.equal(got[key], want[key]), key
+def test_k1_is_one_seeded_window_per_recording_with_the_noise_asked_for(dm, split, std):
+    batch = dm.eval_batch(split, std)  # K = 1, the default
+    again = make().eval_batch(split, std, windows=1)  # another data module of the same seed
+    assert batch.keys() == again.keys()
+    assert all(torch.equal(batch[key], again[key]) for key in batch)
+    rows = dm.rows(split)
+    np.testing.assert_array_equal(batch["index"].numpy(), rows)  # each recording once, in the split's order
+    clean = dm.eval_batch(split, 0.0)
+    starts = starts_of(dm, clean)  # each window found once, inside its recording
+    assert len(np.unique(starts)) > len(rows) // 2  # spread over the recording, not one offset for all
+    assert not np.array_equal(starts, starts_of(dm, make(seed=1).eval_batch(split, 0.0)))  # the seed draws them
+    ds = dm.dataset
+    for i, (row, s) in enumerate(zip(rows, starts)):
+        for key, arr in (("rel_vel", ds.rel_vel), ("rel_disp", ds.rel_disp)):
+            np.testing.assert_array_equal(clean[key][i].numpy(), arr[row, s:s + 100])
+        np.testing.assert_array_equal(clean["signals"][i, 1].numpy(), ds.body_acc[row, s:s + 100])
+    noise = (batch["signals"] - clean["signals"]).numpy().astype(np.float64)
+    if std == 0:
+        assert not noise.any()
+        return
+    assert noise.std() == pytest.approx(std, rel=0.1)
+    assert abs(noise.mean()) < 0.1 * std
+    # the noise enters the hybrid objective's regressors as the window re-integrates it
+    vel, disp = relative_states_by_loop(noise[:, 0], noise[:, 1], SPEC.dt)
+    for key, want in (("rel_vel", vel), ("rel_disp", disp)):
+        got = (batch[key] - clean[key]).numpy()
+        np.testing.assert_allclose(got, want, rtol=0, atol=1e-5 * np.abs(want).max())
 
 
 def test_k_windows_are_distinct_reproducible_and_nested(dm):
@@ -120,5 +144,5 @@ def test_predictions_are_averaged_over_each_recordings_k_windows(dm):
         np.testing.assert_allclose(pred, want, rtol=1e-5)
         np.testing.assert_array_equal(true, dm.dataset.params[dm.rows("test")].astype(np.float32))
     one, _ = model.predict_split(dm, "test", 0.02, windows=1)
-    old = FakeNet()(old_eval_batch(dm, "test", 0.02)["signals"]).numpy().astype(np.float64)
-    np.testing.assert_array_equal(one, old)  # K = 1: exactly the single-window prediction
+    single = FakeNet()(dm.eval_batch("test", 0.02)["signals"]).numpy().astype(np.float64)
+    np.testing.assert_array_equal(one, single)  # K = 1: exactly the single window's prediction

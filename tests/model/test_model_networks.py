@@ -4,7 +4,9 @@ import pytest
 import torch
 from torch import nn
 
-from hybrid_sysid.model import P_MAX, P_MIN, FastCNN, PaperCNN
+from hybrid_sysid.model import FastCNN, PaperCNN
+
+from paper_prior import P_MAX, P_MIN, P_SCALE
 
 
 def test_paper_cnn_layers_match_the_paper():
@@ -18,7 +20,7 @@ def test_paper_cnn_layers_match_the_paper():
         (10, 100), (10,),
         (2, 10), (2,),
     ]
-    model = PaperCNN(window=window)
+    model = PaperCNN(P_SCALE, window=window)
     assert [tuple(p.shape) for p in model.parameters()] == expected
     n_hand = (2 * 50 + 1) * 100 + (100 * 10 + 1) * 100 + (100 * 442 + 1) * 100 + (100 + 1) * 10 + (10 + 1) * 2
     assert sum(p.numel() for p in model.parameters()) == n_hand == 4_531_332
@@ -26,14 +28,14 @@ def test_paper_cnn_layers_match_the_paper():
 
 def test_paper_cnn_output_is_positive_and_scaled():
     torch.manual_seed(0)
-    model = PaperCNN(window=200)
+    model = PaperCNN(P_SCALE, window=200)
     out = model(torch.randn(5, 2, 200))
     assert out.shape == (5, 2) and (out >= 0).all()
     last = model.net[-1]
-    with torch.no_grad():  # a constant last layer shows the abs and the label scale: |(-1, 2)| * (7.7, 1237)
+    with torch.no_grad():  # a constant last layer shows the abs and the label scale: |(-1, 2)| * p_scale
         last.weight.zero_()
         last.bias.copy_(torch.tensor([-1.0, 2.0]))
-    assert torch.allclose(model(torch.randn(3, 2, 200)), torch.tensor([[7.7, 2474.0]] * 3))
+    assert torch.allclose(model(torch.randn(3, 2, 200)), torch.tensor([[P_SCALE[0], 2 * P_SCALE[1]]] * 3))
 
 
 @pytest.mark.parametrize("kwargs, match", [
@@ -43,12 +45,12 @@ def test_paper_cnn_output_is_positive_and_scaled():
 ])
 def test_paper_cnn_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        PaperCNN(**kwargs)
+        PaperCNN(**({"p_scale": P_SCALE} | kwargs))
 
 
 def test_fast_cnn_output_stays_inside_the_widened_prior():
     torch.manual_seed(0)
-    model = FastCNN(channels=16, n_layers=3, margin=0.1)
+    model = FastCNN(P_MIN, P_MAX, channels=16, n_layers=3, margin=0.1)
     out = model(1e3 * torch.randn(7, 2, 500))
     assert out.shape == (7, 2)
     for j in range(2):
@@ -64,19 +66,19 @@ def test_fast_cnn_output_stays_inside_the_widened_prior():
 def test_fast_cnn_is_blind_to_the_overall_amplitude():
     # the per-window body-RMS scale: a class E road is a scaled class A road as far as p is concerned
     torch.manual_seed(0)
-    model = FastCNN(channels=8, n_layers=2).eval()
+    model = FastCNN(P_MIN, P_MAX, channels=8, n_layers=2).eval()
     x = torch.randn(4, 2, 300)
     assert torch.allclose(model(x), model(16.0 * x), rtol=1e-5)
 
 
 def test_fast_cnn_layers():
-    model = FastCNN(channels=32, n_layers=4, kernel_size=5)
+    model = FastCNN(P_MIN, P_MAX, channels=32, n_layers=4, kernel_size=5)
     convs = [m for m in model.modules() if isinstance(m, nn.Conv1d)]
     assert [tuple(c.weight.shape) for c in convs] == [(32, 3, 5)] + [(32, 32, 5)] * 3
     assert model.head.in_features == 32 and model.head.out_features == 2
     assert [c.stride for c in convs] == [(2,)] * 4  # default downsampling: stride-2 convolutions
     assert not any(isinstance(m, nn.MaxPool1d) for m in model.modules())
-    pooled = FastCNN(channels=32, n_layers=4, kernel_size=5, downsample="pool")
+    pooled = FastCNN(P_MIN, P_MAX, channels=32, n_layers=4, kernel_size=5, downsample="pool")
     assert [c.stride for c in pooled.modules() if isinstance(c, nn.Conv1d)] == [(1,)] * 4
     assert sum(isinstance(m, nn.MaxPool1d) for m in pooled.modules()) == 4
 
@@ -84,7 +86,7 @@ def test_fast_cnn_layers():
 @pytest.mark.parametrize("downsample", ["stride", "pool"])
 def test_fast_cnn_halves_the_sequence_per_layer(downsample):
     # each layer halves the length (500 -> 250 -> 125 -> 63|62), so the receptive field is the same either way
-    model = FastCNN(n_layers=3, downsample=downsample).eval()
+    model = FastCNN(P_MIN, P_MAX, n_layers=3, downsample=downsample).eval()
     lengths = []
     hook = lambda m, i, o: lengths.append(o.shape[-1])  # noqa: E731
     for m in model.features:
@@ -107,7 +109,7 @@ def test_fast_cnn_halves_the_sequence_per_layer(downsample):
 ])
 def test_fast_cnn_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        FastCNN(**kwargs)
+        FastCNN(**({"p_min": P_MIN, "p_max": P_MAX} | kwargs))
 
 
 def test_models_are_reproducible_from_the_seed():
@@ -115,12 +117,13 @@ def test_models_are_reproducible_from_the_seed():
     outs = []
     for _ in range(2):
         torch.manual_seed(3)
-        outs.append((FastCNN(channels=8)(x), PaperCNN()(x)))
+        outs.append((FastCNN(P_MIN, P_MAX, channels=8)(x), PaperCNN(P_SCALE)(x)))
     assert all(torch.equal(a, b) for a, b in zip(*outs))
     assert math.isfinite(outs[0][1].sum().item())
 
 
-@pytest.mark.parametrize("make", [lambda: FastCNN(channels=8), lambda: PaperCNN(window=120)], ids=["fast", "paper"])
+@pytest.mark.parametrize("make", [lambda: FastCNN(P_MIN, P_MAX, channels=8), lambda: PaperCNN(P_SCALE, window=120)],
+                         ids=["fast", "paper"])
 def test_models_run_under_deterministic_algorithms(make):
     was = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)  # raises on any op without a deterministic implementation

@@ -4,6 +4,8 @@ import torch
 
 from hybrid_sysid.model import CombinedObjective, HybridObjective, LabelledObjective
 
+from paper_prior import P_SCALE
+
 
 class LabelGuard(dict):
     """A batch whose labels raise when read: proof that an objective is label-free."""
@@ -55,7 +57,7 @@ def test_hybrid_normalisation_weighs_rough_and_smooth_roads_alike(consistent_bat
 
 
 @pytest.mark.parametrize("objective", [HybridObjective(), HybridObjective(normalize=False),
-                                       CombinedObjective(labelled_weight=0.0, hybrid_weight=1.0)])
+                                       CombinedObjective(P_SCALE, labelled_weight=0.0, hybrid_weight=1.0)])
 def test_hybrid_never_reads_labels(consistent_batch, objective):
     def loss_and_grad(batch):
         pred = (1.1 * consistent_batch["params"]).requires_grad_()
@@ -77,28 +79,28 @@ def test_labelled_is_l1_in_scaled_units():
     pred = torch.tensor([[8.0, 1300.0], [4.0, 600.0]])
     batch = {"params": torch.tensor([[7.7, 1237.0], [5.0, 500.0]])}
     by_hand = ((0.3 / 7.7 + 63 / 1237) + (1 / 7.7 + 100 / 1237)) / 2
-    assert LabelledObjective()(pred, batch).item() == pytest.approx(by_hand, rel=1e-6)
+    assert LabelledObjective(p_scale=(7.7, 1237.0))(pred, batch).item() == pytest.approx(by_hand, rel=1e-6)
     by_hand_other_scale = ((0.3 / 2 + 63 / 100) + (1 / 2 + 100 / 100)) / 2
     assert LabelledObjective(p_scale=(2, 100))(pred, batch).item() == pytest.approx(by_hand_other_scale, rel=1e-6)
-    assert LabelledObjective()(batch["params"], batch).item() == 0.0
+    assert LabelledObjective(P_SCALE)(batch["params"], batch).item() == 0.0
 
 
 def test_combined_is_the_weighted_sum(consistent_batch):
     pred = consistent_batch["params"] * torch.tensor([0.9, 1.2])
-    lab, hyb = LabelledObjective()(pred, consistent_batch), HybridObjective()(pred, consistent_batch)
+    lab, hyb = LabelledObjective(P_SCALE)(pred, consistent_batch), HybridObjective()(pred, consistent_batch)
     assert lab > 0 and hyb > 0
-    combined = CombinedObjective(labelled_weight=0.3, hybrid_weight=2.0)(pred, consistent_batch)
+    combined = CombinedObjective(P_SCALE, labelled_weight=0.3, hybrid_weight=2.0)(pred, consistent_batch)
     assert combined.item() == pytest.approx(0.3 * lab.item() + 2.0 * hyb.item(), rel=1e-6)
-    only_lab = CombinedObjective(labelled_weight=1.0, hybrid_weight=0.0)(pred, consistent_batch)
+    only_lab = CombinedObjective(P_SCALE, labelled_weight=1.0, hybrid_weight=0.0)(pred, consistent_batch)
     assert only_lab.item() == pytest.approx(lab.item(), rel=1e-6)
 
 
 def test_label_use_is_declared_for_model_selection():
     # train.py picks the checkpoint metric from this flag; a label-free objective must not select on labels
-    assert not HybridObjective().uses_labels
-    assert not CombinedObjective(labelled_weight=0.0, hybrid_weight=1.0).uses_labels
-    assert getattr(LabelledObjective(), "uses_labels", True)
-    assert CombinedObjective(labelled_weight=0.5, hybrid_weight=1.0).uses_labels
+    assert HybridObjective().uses_labels is False
+    assert CombinedObjective(P_SCALE, labelled_weight=0.0, hybrid_weight=1.0).uses_labels is False
+    assert LabelledObjective(P_SCALE).uses_labels is True
+    assert CombinedObjective(P_SCALE, labelled_weight=0.5, hybrid_weight=1.0).uses_labels is True
 
 
 @pytest.mark.parametrize("kwargs, match", [
@@ -110,11 +112,11 @@ def test_label_use_is_declared_for_model_selection():
 ])
 def test_combined_rejects_bad_weights(kwargs, match):
     with pytest.raises(ValueError, match=match):
-        CombinedObjective(**kwargs)
+        CombinedObjective(P_SCALE, **kwargs)
 
 
 @pytest.mark.parametrize("make, match", [
-    (lambda: LabelledObjective(norm="huber"), "norm = 'huber'"),
+    (lambda: LabelledObjective(P_SCALE, norm="huber"), "norm = 'huber'"),
     (lambda: LabelledObjective(p_scale=(0.0, 1.0)), "p_scale"),
     (lambda: HybridObjective(eps=-1.0), "eps = -1.0"),
 ])

@@ -1,9 +1,9 @@
 """The Trainer path takes exactly the optimisation steps of a plain PyTorch loop.
 
-ParameterEstimator writes its step out (manual optimisation), so nothing in Lightning zeroes gradients or steps
-the learning-rate schedule for it: a forgotten scheduler step or a doubled optimizer step would leave the run
-training, only differently. The reference here is the loop any PyTorch user would write, with torch's own
-OneCycleLR, on the same batches from the same initial weights.
+Lightning's automatic optimisation zeroes the gradients, steps the optimiser and, with the schedule's
+``interval: step``, the learning-rate schedule: a schedule stepped per epoch instead, or a doubled optimiser
+step, would leave the run training, only differently. The reference here is the loop any PyTorch user would
+write, with torch's own OneCycleLR, on the same batches from the same initial weights.
 """
 
 import copy
@@ -15,6 +15,8 @@ import torch
 from hybrid_sysid.model import FastCNN, HybridObjective, LabelledObjective
 from hybrid_sysid.model.module import ParameterEstimator
 
+from paper_prior import P_MAX, P_MIN, P_SCALE
+
 STEPS = 6
 
 
@@ -24,10 +26,10 @@ def batches(batch_factory):
             for i in range(STEPS)]
 
 
-@pytest.mark.parametrize("objective", [LabelledObjective, HybridObjective])
+@pytest.mark.parametrize("objective", [lambda: LabelledObjective(P_SCALE), HybridObjective], ids=["labelled", "hybrid"])
 def test_trainer_steps_equal_a_plain_loop(batches, objective, tmp_path):
     torch.manual_seed(0)
-    model = ParameterEstimator(FastCNN(channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
+    model = ParameterEstimator(FastCNN(P_MIN, P_MAX, channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
                                max_steps=STEPS)
     plain = copy.deepcopy(model)
 

@@ -13,23 +13,19 @@ from hybrid_sysid.data.dataset import DatasetSpec, QCMDataset, get_dataset
 from hybrid_sysid.data.splits import SPLITS, split_by_road
 from hybrid_sysid.physics import relative_states
 
+
 def _windows(arr: np.ndarray, window: int) -> np.ndarray:
     """A read-only view of every window of every recording: (recordings, starts, window), no copy."""
     return np.lib.stride_tricks.sliding_window_view(arr, window, axis=1)
 
 
-def _gather(windows: np.ndarray, rows: np.ndarray, starts: np.ndarray) -> torch.Tensor:
+def gather(windows: np.ndarray, rows: np.ndarray, starts: np.ndarray) -> torch.Tensor:
     """windows[rows[i], starts[i]] for every i: arr[rows[i], starts[i]:starts[i] + window], one contiguous copy.
 
     Indexing the window view copies whole rows; torch's advanced indexing with a (batch, window) column index
-    was 13x slower (577 against 45 us for the four channels at batch 64, window 500: benchmarks/data_pipeline.py).
+    takes over 10x as long (benchmarks/README.md, "Data pipeline").
     """
     return torch.from_numpy(windows[rows, starts])
-
-
-def _noise_states(noise: np.ndarray, dt: float, measurement: str) -> tuple[np.ndarray, np.ndarray]:
-    """Relative velocity and displacement that the noise adds when re-integrated from the window's start."""
-    return relative_states(noise[:, 0], noise[:, 1], dt, measurement)
 
 
 class QCMData:
@@ -46,10 +42,10 @@ class QCMData:
 
     def batch(self, rows, starts, noise: np.ndarray | None = None) -> dict[str, torch.Tensor]:
         rows, starts = np.asarray(rows, dtype=np.int64), np.asarray(starts, dtype=np.int64)
-        signals = torch.stack([_gather(self.seat, rows, starts), _gather(self.body, rows, starts)], dim=1)
-        rel_vel, rel_disp = _gather(self.rel_vel, rows, starts), _gather(self.rel_disp, rows, starts)
-        if noise is not None:
-            nv, nd = _noise_states(noise, self.dt, self.measurement)
+        signals = torch.stack([gather(self.seat, rows, starts), gather(self.body, rows, starts)], dim=1)
+        rel_vel, rel_disp = gather(self.rel_vel, rows, starts), gather(self.rel_disp, rows, starts)
+        if noise is not None:  # what the noise adds to the relative states, re-integrated from the window's start
+            nv, nd = relative_states(noise[:, 0], noise[:, 1], self.dt, self.measurement)
             signals = signals + torch.from_numpy(noise.astype(np.float32))
             rel_vel = rel_vel + torch.from_numpy(nv.astype(np.float32))
             rel_disp = rel_disp + torch.from_numpy(nd.astype(np.float32))
@@ -62,9 +58,9 @@ class RandomWindows(IterableDataset):
     """An endless stream of training batches; trainer.max_steps ends training.
 
     Pass e visits every training recording once, in random order, each at a fresh random window start, from
-    a generator seeded by (seed, e), so the stream is reproducible and ``start_pass`` can resume it exactly.
+    a generator seeded by (seed, e), so the stream is reproducible and ``resume_at`` can resume it exactly.
     Whole batches are cut with vectorised indexing. One stream (no epochs) also spares Lightning's per-epoch
-    overhead, which dominated on small datasets.
+    overhead, which would dominate on small datasets.
     """
 
     def __init__(self, data: QCMData, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0):
@@ -104,7 +100,9 @@ class RandomWindows(IterableDataset):
 class QCMDataModule(L.LightningDataModule):
     """Simulated (or cached) quarter-car recordings cut into windows.
 
-    Training: random windows drawn afresh every epoch, optional noise ``train_std``.
+    Training: an endless stream of random windows (``RandomWindows``), optional noise ``train_std``; its
+    position is the data module's state in a checkpoint, so a resumed run draws the batches an uninterrupted
+    one would.
     Evaluation: one fixed, seeded window per recording (or K of them: ``eval_batch(windows=K)``); Gaussian
     noise of each std in ``eval_std`` added to both channels, from one seeded standard-normal draw per split
     scaled to each level (so levels differ only in size, which keeps robustness curves smooth).
@@ -138,6 +136,7 @@ class QCMDataModule(L.LightningDataModule):
         self.eval_std, self.train_std, self.seed = [float(s) for s in eval_std], float(train_std), seed
         self.dataset: QCMDataset | None = None
         self.data: QCMData | None = None
+        self.train_windows: RandomWindows | None = None
         self._eval_cache: dict = {}
 
     def prepare_data(self) -> None:
@@ -165,8 +164,8 @@ class QCMDataModule(L.LightningDataModule):
         seeded streams, one per j (so the K = 4 windows are the first four of the K = 8 ones), with starts
         distinct within a recording. With K > 1 each recording gets ONE noise realisation over its whole
         series and every window is cut from it, so overlapping windows share their noise as they would in a
-        real recording; averaging K windows then gains only what one recording honestly offers. (K = 1 keeps
-        its per-window draw, statistically the same thing, so earlier K = 1 results are reproduced exactly.)
+        real recording; averaging K windows then gains only what one recording honestly offers. K = 1 draws
+        noise for its window alone: statistically the same thing, without a series-long draw.
         """
         is_int = isinstance(windows, (int, np.integer)) and not isinstance(windows, bool)
         if not is_int or not 1 <= windows <= self.n_starts():
@@ -221,11 +220,26 @@ class QCMDataModule(L.LightningDataModule):
                         windows: int = 1) -> DataLoader:
         full = self.eval_batch(split, noise_std, limit, windows)
         n = len(full["index"])
-        chunks = [{k: v[i:i + self.eval_batch_size] for k, v in full.items()} for i in range(0, n, self.eval_batch_size)]
+        size = self.eval_batch_size
+        chunks = [{k: v[i:i + size] for k, v in full.items()} for i in range(0, n, size)]
         return DataLoader(chunks, batch_size=None)
 
+    def state_dict(self) -> dict:
+        """Saved in checkpoints: how many training batches the run has taken, one per optimiser step
+        (``accumulate_grad_batches`` with gradient accumulation)."""
+        if self.trainer is None:
+            return {}
+        return {"train_batches": self.trainer.global_step * self.trainer.accumulate_grad_batches}
+
+    def load_state_dict(self, state_dict: dict) -> None:
+        """Restored from a checkpoint before training starts: the stream continues where the run left it."""
+        if "train_batches" in state_dict:
+            self.setup("fit")
+            self.train_windows.resume_at(state_dict["train_batches"])
+
     def transfer_batch_to_device(self, batch, device, dataloader_idx):
-        # batches are built on the CPU; Lightning's default walks every batch to move it nowhere (~0.1 ms a step)
+        # batches are built on the CPU, and Lightning's default walks every batch to move it nowhere: ~0.1 ms
+        # a step (benchmarks/README.md, "Training throughput")
         if device.type == "cpu":
             return batch
         return super().transfer_batch_to_device(batch, device, dataloader_idx)

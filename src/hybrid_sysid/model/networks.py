@@ -1,7 +1,9 @@
 """The two parameter estimators: the paper's CNN (sec. 2.4) and a compact CNN that learns in minutes on a CPU.
 
 Both map a batch of sensor windows (B, 2, W) -- channel 0 seat z'', channel 1 body y'' -- to (B, 2) positive
-predictions (p1, p2) in physical units (1/s, 1/s^2), so every objective sees the same thing.
+predictions (p1, p2) in physical units (1/s, 1/s^2), so every objective sees the same thing. Both are told the
+prior of p = (C3, K3) / m3 (the car's and the seat masses' range): the run's config derives it
+(``${p_prior:...}``, hybrid_sysid.config), so another car or mass range moves it too.
 """
 
 from __future__ import annotations
@@ -12,23 +14,9 @@ from typing import Sequence
 import torch
 from torch import nn
 
-# The prior of the unknowns: p = (C3, K3) / m3 with m3 in [50, 200] kg (DESIGN.md).
-P_MIN = (3.075, 494.675)
-P_MAX = (12.3, 1978.7)
-_ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "none": nn.Identity}
+from hybrid_sysid.model.checks import check_int, check_pair
 
-
-def _check_pair(name: str, value) -> tuple[float, float]:
-    pair = tuple(float(v) for v in value)
-    if len(pair) != 2 or not all(math.isfinite(v) and v > 0 for v in pair):
-        raise ValueError(f"{name} = {value} is invalid; it must be two finite values > 0 (p1, p2)")
-    return pair
-
-
-def _check_int(name: str, value, low: int) -> int:
-    if isinstance(value, bool) or int(value) != value or value < low:
-        raise ValueError(f"{name} = {value} is invalid; it must be an integer >= {low}")
-    return int(value)
+ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "none": nn.Identity}
 
 
 class PaperCNN(nn.Module):
@@ -38,19 +26,20 @@ class PaperCNN(nn.Module):
     second convolution and after the dense 100 and 10 layers: without it, conv2 -> dense 100 -> 10 -> 2 collapse
     into a single linear map and the extra layers would be pointless; tanh is the paper's only named activation.
     ``activation="none"`` gives the literal reading. The abs output is multiplied by a fixed label scale
-    ``p_scale`` (a buffer), so the raw outputs are of order 1: an abs(linear) head from random init otherwise needs
-    many thousands of steps just to reach p2 ~ 1000 (DESIGN.md).
+    ``p_scale`` (a buffer; the midpoint of the prior), so the raw outputs are of order 1: an abs(linear) head from
+    random weights otherwise needs very many steps just to reach p2 ~ 1000 (docs/design.md, "Choices the paper
+    leaves open").
     """
 
-    def __init__(self, window: int = 500, in_channels: int = 2, p_scale: Sequence[float] = (7.7, 1237.0),
+    def __init__(self, p_scale: Sequence[float], window: int = 500, in_channels: int = 2,
                  activation: str = "tanh"):
         super().__init__()
-        window = _check_int("window", window, 59)  # both 'valid' convolutions need 50 + 10 - 1 samples
-        in_channels = _check_int("in_channels", in_channels, 1)
-        if activation not in _ACTIVATIONS:
-            raise ValueError(f"activation = {activation!r} is unknown; allowed: {', '.join(_ACTIVATIONS)}")
-        self.register_buffer("p_scale", torch.tensor(_check_pair("p_scale", p_scale)))
-        act = _ACTIVATIONS[activation]
+        window = check_int("window", window, 59)  # both 'valid' convolutions need 50 + 10 - 1 samples
+        in_channels = check_int("in_channels", in_channels, 1)
+        if activation not in ACTIVATIONS:
+            raise ValueError(f"activation = {activation!r} is unknown; allowed: {', '.join(ACTIVATIONS)}")
+        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
+        act = ACTIVATIONS[activation]
         flat = 100 * (window - 50 + 1 - 10 + 1)
         self.net = nn.Sequential(
             nn.Conv1d(in_channels, 100, kernel_size=50), nn.Tanh(),
@@ -72,29 +61,28 @@ class FastCNN(nn.Module):
     each window is divided by its body channel's RMS (the seat/body ratio, which carries p, is kept), and the
     seat-minus-body difference is added as a third channel (the relative motion that the seat spring and
     damper act on). The head is bounded: log p = log p_lo + (log p_hi - log p_lo) sigmoid(h), with the prior
-    [P_MIN, P_MAX] widened by ``margin`` (as a fraction of the log range) on each side so the true extremes are
+    [p_min, p_max] widened by ``margin`` (as a fraction of the log range) on each side so the true extremes are
     not at the sigmoid's flat ends. A bounded head starts every prediction inside the prior, which keeps the
     hybrid objective sane from step 0; log scaling matches p ~ 1/m3 and the relative-deviation metric.
 
-    Defaults (32 channels, kernel 9) were tuned for accuracy per CPU second on 40 roads x 50 masses, dt = 5 ms:
-    64 channels cost ~2x per step for no gain at equal steps; kernel 9 was a little better than 5 or 7 at equal
-    cost. ``downsample="stride"`` (a stride-2 convolution) halves the sequence in each layer instead of a
-    stride-1 convolution followed by MaxPool(2) (``"pool"``): it computes half the convolution outputs and
-    skips max pooling, whose with-indices CPU kernel took a quarter of the step. A step costs about half; per
-    step it learns a little less (1500 steps: 1.24% vs 1.26% clean test; 3000 steps: 1.15% vs 1.04%), so per
-    second of training it is ahead. BatchNorm, ReLU, max and mean pooling are deterministic on CPU. ``bn_momentum`` 0.01 (torch's default
-    is 0.1) averages the running statistics over ~100 batches: with 0.1 the eval-mode test error after the same
-    training swung between 1.0% and 1.7% with the last few batches; 0.01 matched exact re-estimated statistics.
+    The defaults (32 channels, kernel 9) were chosen for accuracy per CPU second of training on data=default:
+    more channels cost more per step than they gained. ``downsample="stride"`` (a stride-2 convolution) halves
+    the sequence in each layer instead of a stride-1 convolution followed by MaxPool(2) (``"pool"``): it computes
+    half the convolution outputs and skips max pooling, so a step costs less, and although it learns a little
+    less per step it is ahead per second of training. BatchNorm, ReLU, max and mean pooling are deterministic
+    on the CPU. ``bn_momentum`` 0.01 (torch's default is 0.1) averages the running statistics over ~100
+    batches, so the eval-mode statistics, and with them the test error, do not follow the last few training
+    batches.
     """
 
-    def __init__(self, in_channels: int = 2, channels: int = 32, n_layers: int = 4, kernel_size: int = 9,
-                 p_min: Sequence[float] = P_MIN, p_max: Sequence[float] = P_MAX, margin: float = 0.1,
-                 diff_channel: bool = True, bn_momentum: float = 0.01, downsample: str = "stride"):
+    def __init__(self, p_min: Sequence[float], p_max: Sequence[float], in_channels: int = 2, channels: int = 32,
+                 n_layers: int = 4, kernel_size: int = 9, margin: float = 0.1, diff_channel: bool = True,
+                 bn_momentum: float = 0.01, downsample: str = "stride"):
         super().__init__()
-        in_channels = _check_int("in_channels", in_channels, 1)
-        channels = _check_int("channels", channels, 1)
-        n_layers = _check_int("n_layers", n_layers, 1)
-        kernel_size = _check_int("kernel_size", kernel_size, 1)
+        in_channels = check_int("in_channels", in_channels, 1)
+        channels = check_int("channels", channels, 1)
+        n_layers = check_int("n_layers", n_layers, 1)
+        kernel_size = check_int("kernel_size", kernel_size, 1)
         if kernel_size % 2 == 0:
             raise ValueError(f"kernel_size = {kernel_size} is invalid; it must be odd (for 'same' padding)")
         if not (math.isfinite(margin) and 0 <= margin <= 1):
@@ -105,7 +93,7 @@ class FastCNN(nn.Module):
             raise ValueError(f"downsample = {downsample!r} is unknown; allowed: pool, stride")
         if diff_channel and in_channels != 2:
             raise ValueError(f"in_channels = {in_channels} is invalid with diff_channel=True; it must be 2")
-        lo, hi = _check_pair("p_min", p_min), _check_pair("p_max", p_max)
+        lo, hi = check_pair("p_min", p_min), check_pair("p_max", p_max)
         if not all(a < b for a, b in zip(lo, hi)):
             raise ValueError(f"p_min = {p_min} must be below p_max = {p_max} for each parameter")
         log_lo, log_hi = torch.tensor(lo).log(), torch.tensor(hi).log()

@@ -13,7 +13,7 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from hybrid_sysid.model.networks import _check_pair
+from hybrid_sysid.model.checks import check_pair
 
 _NORMS = ("l1", "l2")
 
@@ -21,16 +21,19 @@ _NORMS = ("l1", "l2")
 class LabelledObjective(nn.Module):
     """J_L (eq. 17): mean over the batch of sum_i |p_i - p~_i|, both divided by ``p_scale``.
 
-    Scaling puts p1 (~8) and p2 (~1200) on one footing; unscaled, p2 alone would drive the gradient.
+    Scaling puts p1 (~8) and p2 (~1200) on one footing; unscaled, p2 alone would drive the gradient. The run's
+    config passes the midpoint of the prior of p (``${p_prior:scale}``, hybrid_sysid.config).
     ``norm="l2"`` (squared error) is offered as an alternative; the paper's is l1.
     """
 
-    def __init__(self, p_scale: Sequence[float] = (7.7, 1237.0), norm: str = "l1"):
+    uses_labels = True  # model selection may then use the labelled val/rel_dev (trainer.monitor=auto)
+
+    def __init__(self, p_scale: Sequence[float], norm: str = "l1"):
         super().__init__()
         if norm not in _NORMS:
             raise ValueError(f"norm = {norm!r} is unknown; allowed: {', '.join(_NORMS)}")
         self.norm = norm
-        self.register_buffer("p_scale", torch.tensor(_check_pair("p_scale", p_scale)))
+        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         err = (pred - batch["params"].to(pred)) / self.p_scale
@@ -69,9 +72,8 @@ class HybridObjective(nn.Module):
 class CombinedObjective(nn.Module):
     """labelled_weight * J_L + hybrid_weight * J_U; other keyword arguments go to the two objectives."""
 
-    def __init__(self, labelled_weight: float = 1.0, hybrid_weight: float = 1.0,
-                 p_scale: Sequence[float] = (7.7, 1237.0), norm: str = "l1", normalize: bool = True,
-                 eps: float = 1e-12):
+    def __init__(self, p_scale: Sequence[float], labelled_weight: float = 1.0, hybrid_weight: float = 1.0,
+                 norm: str = "l1", normalize: bool = True, eps: float = 1e-12):
         super().__init__()
         for name, w in (("labelled_weight", labelled_weight), ("hybrid_weight", hybrid_weight)):
             if not (math.isfinite(w) and w >= 0):
