@@ -18,7 +18,7 @@ from omegaconf import MISSING, DictConfig, OmegaConf
 from hybrid_sysid.data import DatasetSpec, split_by_road
 from hybrid_sysid.physics import QuarterCar
 
-CONF_DIR = str(Path(__file__).resolve().parents[2] / "conf")
+CONF_DIR = str(Path(__file__).resolve().parent / "conf")  # inside the package, so an installed wheel has it
 
 
 class ConfigError(ValueError):

@@ -1,0 +1,3 @@
+from hybrid_sysid.app import main
+
+main()

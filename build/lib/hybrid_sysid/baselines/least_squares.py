@@ -1,0 +1,138 @@
+"""Classical least squares for (p1, p2): no network, no training, plain numpy in float64.
+
+The seat equation z''_k = -p1 rel_vel_k - p2 rel_disp_k (physics.relative_states) is linear in p, so each
+recording (or each window) gives p by regressing the seat acceleration on (-rel_vel, -rel_disp). With
+``data.measurement=consistent`` it holds to rounding on clean data, so the fit returns the true p; under
+sensor noise the regressors are the re-integrated noisy accelerations (errors in variables), which biases
+the plain fit, and a band-pass applied to all three signals (filters.py) removes most of that noise.
+
+``LeastSquaresEstimator`` has the evaluation interface of ``model.module.ParameterEstimator``
+(``predict_split``), so ``train.evaluate`` scores it like a network; ``trainable = False`` tells ``train``
+to skip Lightning.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from hybrid_sysid.baselines.filters import format_value, bandpass_taps, check_bandpass, fir_valid
+from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
+from hybrid_sysid.physics import relative_states
+
+SPANS = ("window", "series")
+FILTERS = ("none", "bandpass")
+_SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
+
+
+def lstsq_rows(a: np.ndarray, b: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Per row i, the (c1, c2) minimising ||y_i - c1 a_i - c2 b_i||, for arrays (n, T); returns (n, 2) float64.
+
+    A two-column QR by Gram-Schmidt with one re-orthogonalisation, vectorised over rows: stable where the
+    normal equations would square the condition number (rel_vel and rel_disp differ in scale by ~sqrt(p2)
+    and are far from orthogonal on smooth roads). Rows with a zero or dependent column give NaN.
+    """
+    a, b, y = (np.asarray(v, dtype=np.float64) for v in (a, b, y))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        r11 = np.linalg.norm(a, axis=-1)
+        q1 = a / r11[:, None]
+        r12 = np.einsum("ij,ij->i", q1, b)
+        u = b - r12[:, None] * q1
+        s = np.einsum("ij,ij->i", q1, u)  # second pass: what rounding left of q1 in u
+        u -= s[:, None] * q1
+        r12 += s
+        r22 = np.linalg.norm(u, axis=-1)
+        q2 = u / r22[:, None]
+        c2 = np.einsum("ij,ij->i", q2, y) / r22
+        c1 = (np.einsum("ij,ij->i", q1, y) - r12 * c2) / r11
+    out = np.stack([c1, c2], axis=-1)
+    out[~(r11 > 0) | ~(r22 > 1e-13 * np.linalg.norm(b, axis=-1))] = np.nan  # NaN compares False: caught too
+    return out
+
+
+def fit_p(seat: np.ndarray, rel_vel: np.ndarray, rel_disp: np.ndarray, taps: np.ndarray | None = None) -> np.ndarray:
+    """(p1, p2) per row from z'' = -p1 rel_vel - p2 rel_disp, after an optional FIR on all three signals."""
+    if taps is not None:
+        seat, rel_vel, rel_disp = (fir_valid(v, taps) for v in (seat, rel_vel, rel_disp))
+    return lstsq_rows(-np.asarray(rel_vel, dtype=np.float64), -np.asarray(rel_disp, dtype=np.float64), seat)
+
+
+class LeastSquaresEstimator:
+    """Least-squares (p1, p2) per recording, evaluated like a trained network.
+
+    span "window": per evaluation window, on the regressors the hybrid objective gets: the data module's
+        batch rel_vel / rel_disp (integrated over the whole recording from t0, cropped, plus the window's
+        noise re-integrated from the window start). With K windows per recording (evaluation.windows), the
+        K estimates are averaged like a network's predictions.
+    span "series": per recording over all its steps, with noise of the given std added to both channels over
+        the whole recording (seeded per (seed, split), as the data module does for windows) and re-integrated
+        from t0. It sees no windows, so it ignores K: every K gives the same one estimate per recording.
+    filter "bandpass": the same zero-phase FIR band-pass [low_hz, high_hz] (``taps`` long, dt the data's step)
+        on the seat acceleration and both regressors before the fit; the filter's edges are dropped.
+        The defaults, 4-20 Hz and 151 taps at dt = 5 ms, keep the seat resonance and drop the drift of
+        integrated noise (docs/baselines.md: how they were chosen).
+    """
+
+    trainable = False  # train() evaluates it directly, without Lightning
+
+    def __init__(self, span: str = "window", filter: str = "none", low_hz: float = 4.0, high_hz: float = 20.0,
+                 taps: int = 151, dt: float = 0.005):
+        if span not in SPANS:
+            raise ValueError(f"model.net.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
+        if filter not in FILTERS:
+            raise ValueError(f"model.net.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
+        check_bandpass(low_hz, high_hz, taps, dt)  # checked even when unused, so a typo never waits
+        self.span, self.filter = span, filter
+        self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
+        self.fir = bandpass_taps(low_hz, high_hz, taps, dt) if filter == "bandpass" else None
+        self.fit_seconds = 0.0  # wall time spent in predict_split: a baseline's only work
+
+    def check_lengths(self, window: int, n_steps: int) -> None:
+        """The band-pass must leave enough samples of what it filters (a window or the whole recording)."""
+        if self.fir is None:
+            return
+        length, key = (window, "data.window") if self.span == "window" else (n_steps, "data.n_steps")
+        if self.taps > length - 9:
+            raise ValueError(f"model.net.taps = {self.taps} is not allowed: must be <= {key} - 9 = {length - 9} "
+                             f"(the band-pass must leave at least 10 samples of each {self.span})")
+
+    def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1):
+        """Estimates and truth, float64 (n, 2), one row per recording: ParameterEstimator's interface."""
+        start = time.perf_counter()
+        dm.setup()
+        self.check_lengths(dm.window, dm.data.n_steps)
+        if self.span == "window":
+            pred, true = self._windows(dm, split, noise_std, limit, windows)
+        else:
+            pred, true = self._series(dm, split, noise_std, limit)
+        self.fit_seconds += time.perf_counter() - start
+        return pred, true
+
+    def _windows(self, dm, split, noise_std, limit, windows):
+        batch = dm.eval_batch(split, noise_std, limit, windows=windows)
+        seat = batch["signals"][:, 0].numpy()
+        p = fit_p(seat, batch["rel_vel"].numpy(), batch["rel_disp"].numpy(), self.fir)
+        # the batch holds each recording's K windows in a row (data module); mean over them as for a network
+        pred = p.reshape(-1, windows, 2).mean(axis=1)
+        true = batch["params"].numpy().astype(np.float64).reshape(-1, windows, 2)[:, 0]
+        return pred, true
+
+    def _series(self, dm, split, noise_std, limit):
+        ds, rows = dm.dataset, dm.rows(split)
+        rows = rows if limit is None else rows[:limit]
+        code = SPLITS.index(split)
+        preds = []
+        for c in range(0, len(rows), _SERIES_CHUNK):
+            r = rows[c:c + _SERIES_CHUNK]
+            seat = ds.seat_acc[r].astype(np.float64)
+            body = ds.body_acc[r].astype(np.float64)
+            if noise_std > 0:  # one generator per chunk of the split's rows: the same noise whatever the limit
+                rng = np.random.default_rng([dm.seed, code, 3000, c // _SERIES_CHUNK])
+                noise = noise_std * rng.standard_normal((len(r), 2, seat.shape[1]))
+                seat, body = seat + noise[:, 0], body + noise[:, 1]
+            rel_vel, rel_disp = relative_states(seat, body, ds.spec.dt, ds.spec.measurement)
+            preds.append(fit_p(seat, rel_vel, rel_disp, self.fir))
+        # float32 truth like the network's batches, so both kinds of run score against identical labels
+        true = ds.params[rows].astype(np.float32).astype(np.float64)
+        return np.concatenate(preds) if preds else np.zeros((0, 2)), true

@@ -1,0 +1,84 @@
+"""Lightning callbacks of the training layer: the training clock and the learning curves.
+
+Both keep their state in the run's checkpoints (Lightning saves a callback's ``state_dict``), so a resumed run
+carries on its clock and its curve.
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Sequence
+
+import lightning as L
+
+from hybrid_sysid.model.metrics import summarise
+
+CURVE_COLUMNS = ["step", "seconds", "split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]
+
+
+class TrainingClock(L.Callback):
+    """Training wall time: from the first training batch on, every validation (learning curves included) left
+    out, and the time trained before a resume added."""
+
+    def __init__(self):
+        self.earlier = 0.0  # seconds trained before a resume (from the checkpoint)
+        self.start: float | None = None  # the first training batch of this process
+        self.paused = 0.0  # seconds of evaluation since then
+        self.pause_start: float | None = None  # set while an evaluation runs
+
+    @property
+    def seconds(self) -> float:
+        """Training time so far; while an evaluation runs, the time at its start."""
+        if self.start is None:
+            return self.earlier
+        now = time.perf_counter() if self.pause_start is None else self.pause_start
+        return self.earlier + now - self.start - self.paused
+
+    def on_train_batch_start(self, trainer, pl_module, batch, batch_idx):
+        if self.start is None:
+            self.start = time.perf_counter()
+
+    def on_validation_start(self, trainer, pl_module):
+        if self.start is not None:  # not the sanity check before training
+            self.pause_start = time.perf_counter()
+
+    def on_validation_end(self, trainer, pl_module):
+        # before ModelCheckpoint's on_validation_end (Lightning runs checkpoint callbacks last), so the
+        # checkpoint saved after a validation holds the clock without it
+        if self.pause_start is not None:
+            self.paused += time.perf_counter() - self.pause_start
+            self.pause_start = None
+
+    def state_dict(self) -> dict:
+        return {"seconds": self.seconds}
+
+    def load_state_dict(self, state_dict: dict) -> None:
+        self.earlier = float(state_dict["seconds"])
+
+
+class LearningCurves(L.Callback):
+    """At every validation, the relative deviations on the training split's first ``train_limit`` recordings
+    (clean) and on the test split at each of ``test_noise``, through the model's ``predict_split`` on the data
+    module's fixed windows. ``rows`` holds one row per parameter and evaluation (``CURVE_COLUMNS``), with the
+    optimiser step and the training time of ``clock``."""
+
+    def __init__(self, clock: TrainingClock, test_noise: Sequence[float], train_limit: int = 1000):
+        self.clock, self.train_limit = clock, train_limit
+        self.sets = [("train", 0.0)] + [("test", float(s)) for s in test_noise]
+        self.rows: list[dict] = []
+
+    def on_validation_epoch_end(self, trainer, pl_module):
+        if trainer.sanity_checking:
+            return
+        seconds = round(self.clock.seconds, 3)
+        for split, std in self.sets:
+            limit = self.train_limit if split == "train" else None
+            pred, true = pl_module.predict_split(trainer.datamodule, split, std, limit)
+            self.rows += summarise(pred, true, step=trainer.global_step, seconds=seconds, split=split,
+                                   noise_std=std)
+
+    def state_dict(self) -> dict:
+        return {"rows": self.rows}
+
+    def load_state_dict(self, state_dict: dict) -> None:
+        self.rows = list(state_dict["rows"])

@@ -1,0 +1,219 @@
+"""Structured-config schemas (Hydra's ConfigStore) and range checks with clear messages.
+
+The schemas make an unknown key or a wrong type fail when Hydra composes the config. The range checks in
+``validate`` run right after, before any data is simulated or any directory filled, and raise ConfigError
+naming the key, the value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, Dict, List, Optional
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import MISSING, DictConfig, OmegaConf
+
+from hybrid_sysid.data import DatasetSpec, split_by_road
+from hybrid_sysid.physics import QuarterCar
+
+CONF_DIR = str(Path(__file__).resolve().parent / "conf")  # inside the package, so an installed wheel has it
+
+
+class ConfigError(ValueError):
+    """A config value outside what is allowed; the message names the key, the value and the allowed range."""
+
+
+@dataclass
+class DataConfig:
+    n_roads: int = MISSING
+    n_masses: int = MISSING
+    n_steps: int = MISSING
+    dt: float = MISSING
+    speed: float = MISSING
+    n_waves: int = 300
+    amplitude: str = "paper"
+    m3_min: int = 50
+    m3_max: int = 200
+    measurement: str = "consistent"
+    window: int = 500
+    train_fraction: float = 0.8
+    val_fraction: float = 0.125
+    seed: int = 0
+    cache_dir: str = "outputs/.cache"
+
+
+@dataclass
+class RoadConfig:
+    classes: List[str] = field(default_factory=lambda: list("ABCDE"))
+
+
+@dataclass
+class NoiseConfig:
+    eval_std: List[float] = field(default_factory=lambda: [0.0, 0.01])
+    train_std: float = 0.0
+
+
+@dataclass
+class OptimConfig:
+    name: str = "adamw"
+    lr: float = 3e-3
+    weight_decay: float = 0.0
+    schedule: str = "onecycle"
+    warmup_fraction: float = 0.3
+
+
+@dataclass
+class ModelConfig:
+    net: Dict[str, Any] = MISSING  # _target_ and the network's own arguments
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    batch_size: int = 64
+
+
+@dataclass
+class TrainerConfig:
+    max_steps: int = 6000
+    eval_every_n_steps: int = 200
+    accelerator: str = "cpu"
+    devices: Any = 1
+    threads: Optional[int] = None
+    deterministic: bool = True
+    monitor: str = "auto"
+    progress_bar: bool = True
+    extra: Dict[str, Any] = field(default_factory=dict)  # passed to lightning.Trainer as is
+
+
+@dataclass
+class EvaluationConfig:
+    # K values: for each K and test noise level, average the predictions on K fixed, seeded windows per
+    # recording (K = 1: one window)
+    windows: List[int] = field(default_factory=lambda: [1])
+
+
+@dataclass
+class Config:
+    seed: int = 0
+    resume: Optional[str] = None
+    data: DataConfig = MISSING
+    road: RoadConfig = MISSING
+    noise: NoiseConfig = MISSING
+    model: ModelConfig = MISSING
+    objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
+    trainer: TrainerConfig = MISSING
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    # the car's constants (QuarterCar's fields, its values by default), e.g. car.c3=700
+    car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
+
+
+def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
+    """``${p_prior:min}``, ``${p_prior:max}`` or ``${p_prior:scale}`` in the model and objective configs: the
+    prior range of p = (C3, K3) / m3 for the config's car and seat masses, from p_min = (C3, K3) / data.m3_max to
+    p_max = (C3, K3) / data.m3_min, or its midpoint (the label scale). Derived here, once, so an override of the
+    car or of the mass range moves the networks' bounds and the labelled objective's scale with the data."""
+    spec = dataset_spec(_root_)
+    p_min, p_max = spec.car.parameters(spec.m3_max), spec.car.parameters(spec.m3_min)
+    pairs = {"min": p_min, "max": p_max, "scale": [(a + b) / 2 for a, b in zip(p_min, p_max)]}
+    if which not in pairs:
+        _bad("p_prior", which, f"one of {', '.join(pairs)}")
+    return [float(v) for v in pairs[which]]
+
+
+def register() -> None:
+    """The schema for Hydra and two resolvers: ``p_prior`` (above), and ``first_set`` for the run directory
+    (hydra.run.dir is ``resume`` when given, else a new time-stamped directory)."""
+    ConfigStore.instance().store(name="schema", node=Config)
+    OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
+    OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)
+
+
+def dataset_spec(cfg: DictConfig) -> DatasetSpec:
+    """The values of the config that change the simulated data (the cache key)."""
+    d = cfg.data
+    return DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
+                       n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
+                       m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
+                       car=QuarterCar(**cfg.get("car", {})))
+
+
+CAR_FIELDS = tuple(asdict(QuarterCar()))
+
+
+def _bad(key: str, value, allowed: str):
+    raise ConfigError(f"{key} = {value!r} is not allowed: {allowed}")
+
+
+def validate(cfg: DictConfig) -> None:
+    """Every range check, before any work. Checks that need the physics (stability) use its own functions."""
+    d, t, o = cfg.data, cfg.trainer, cfg.model.optim
+    for key, value in cfg.car.items():
+        if key not in CAR_FIELDS:
+            _bad(f"car.{key}", value, f"unknown; the car's constants are {', '.join(CAR_FIELDS)}")
+        if not (math.isfinite(value) and value > 0):
+            _bad(f"car.{key}", value, "must be finite and > 0")
+    try:
+        dataset_spec(cfg).validate()
+        split_by_road(d.n_roads, d.n_masses, d.train_fraction, d.val_fraction)
+    except ConfigError:
+        raise
+    except ValueError as exc:  # the data layer's own messages already name the key
+        raise ConfigError(str(exc)) from exc
+    min_window = 59 if "PaperCNN" in str(cfg.model.net.get("_target_", "")) else 16
+    if not min_window <= d.window <= d.n_steps:
+        _bad("data.window", d.window, f"must lie in [{min_window}, data.n_steps = {d.n_steps}] "
+             f"({min_window} = the shortest window the network's kernels fit)")
+    for s in cfg.noise.eval_std:
+        if not s >= 0:
+            _bad("noise.eval_std", list(cfg.noise.eval_std), "every standard deviation must be >= 0")
+    if not cfg.noise.eval_std:
+        _bad("noise.eval_std", [], "give at least one level, e.g. [0.0]")
+    if not cfg.noise.train_std >= 0:
+        _bad("noise.train_std", cfg.noise.train_std, "must be >= 0")
+    if cfg.model.batch_size < 1:
+        _bad("model.batch_size", cfg.model.batch_size, "must be >= 1")
+    if not o.lr > 0:
+        _bad("model.optim.lr", o.lr, "must be > 0")
+    if not o.weight_decay >= 0:
+        _bad("model.optim.weight_decay", o.weight_decay, "must be >= 0")
+    if not 0 < o.warmup_fraction < 1:
+        _bad("model.optim.warmup_fraction", o.warmup_fraction, "must lie in (0, 1)")
+    if t.max_steps < 1:
+        _bad("trainer.max_steps", t.max_steps, "must be >= 1")
+    if t.eval_every_n_steps < 1:
+        _bad("trainer.eval_every_n_steps", t.eval_every_n_steps, "must be >= 1")
+    if t.threads is not None and t.threads < 1:
+        _bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
+    if t.monitor not in ("auto", "val/loss", "val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev"):
+        _bad("trainer.monitor", t.monitor, "one of auto, val/loss, val/rel_dev, val/p1_rel_dev, val/p2_rel_dev")
+    windows = list(cfg.evaluation.windows)
+    n_starts = d.n_steps - d.window + 1
+    if not windows or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= n_starts for k in windows):
+        _bad("evaluation.windows", windows, f"a non-empty list of integers K in [1, data.n_steps - data.window + 1 "
+             f"= {n_starts}] (windows per recording)")
+    _validate_baseline(cfg)
+    obj = cfg.objective
+    if "labelled_weight" in obj or "hybrid_weight" in obj:
+        lw, hw = obj.get("labelled_weight", 0.0), obj.get("hybrid_weight", 0.0)
+        if lw < 0 or hw < 0 or lw + hw == 0:
+            _bad("objective.labelled_weight / objective.hybrid_weight", [lw, hw],
+                 "both must be >= 0 and not both zero")
+
+
+def _validate_baseline(cfg: DictConfig) -> None:
+    """A baseline (no network) checks its own arguments when built: build it here, before any work."""
+    from hydra.utils import get_class
+    from omegaconf import OmegaConf
+
+    from hybrid_sysid.baselines import is_baseline
+
+    if not is_baseline(str(cfg.model.net.get("_target_", ""))):
+        return
+    kwargs = OmegaConf.to_container(cfg.model.net, resolve=True)
+    cls = get_class(kwargs.pop("_target_"))
+    try:  # called directly: instantiate() would wrap the one-line message in its own
+        cls(**kwargs).check_lengths(cfg.data.window, cfg.data.n_steps)
+    except ValueError as exc:  # the baseline's messages already name the key
+        raise ConfigError(str(exc)) from exc
+
+
+register()  # composing the app's config (the app, tests, notebooks) needs both

@@ -1,0 +1,225 @@
+"""Dataset generation (sec. 2.3) and its on-disk cache.
+
+Recordings are stored road-major (recording = road * n_masses + mass index), so a split by road is a
+contiguous range of recordings and no test road is ever seen in training.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import warnings
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+
+import numpy as np
+from filelock import FileLock
+
+from hybrid_sysid.files import write_atomic
+from hybrid_sysid.physics import fused
+from hybrid_sysid.physics import ROAD_CLASSES, QuarterCar, relative_states, road_profiles, simulate, stable_dt_limit
+
+log = logging.getLogger(__name__)
+
+# Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
+SIMULATOR_VERSION = 2  # 2: relative states integrated from seat - body (fewer cancelled digits)
+CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
+MEASUREMENTS = ("paper", "consistent")
+
+
+@dataclass(frozen=True)
+class DatasetSpec:
+    """Every value that changes the simulated data (and nothing else): the cache key hashes all of it."""
+
+    n_roads: int = 40
+    n_masses: int = 50
+    n_steps: int = 1200
+    dt: float = 0.005
+    speed: float = 15.0
+    n_waves: int = 300
+    amplitude: str = "paper"
+    road_classes: tuple = tuple(ROAD_CLASSES)
+    m3_min: int = 50
+    m3_max: int = 200
+    measurement: str = "consistent"
+    seed: int = 0
+    car: QuarterCar = field(default_factory=QuarterCar)
+
+    def validate(self, prefix: str = "data") -> None:
+        """Raise ValueError naming the key, the value and what is allowed; called before any work."""
+        def bad(key, value, allowed):
+            raise ValueError(f"{key} = {value!r} is not allowed: {allowed}")
+
+        if self.n_roads < 2:
+            bad(f"{prefix}.n_roads", self.n_roads, "need at least 2 roads to split by road into train and test")
+        if self.n_masses < 1:
+            bad(f"{prefix}.n_masses", self.n_masses, "must be >= 1")
+        if self.n_steps < 2:
+            bad(f"{prefix}.n_steps", self.n_steps, "must be >= 2")
+        if not self.dt > 0:
+            bad(f"{prefix}.dt", self.dt, "must be > 0 (seconds)")
+        limit = stable_dt_limit(self.car, self.m3_min, self.m3_max) if self.m3_min > 0 else None
+        if limit is not None and self.dt > limit:
+            bad(f"{prefix}.dt", self.dt, f"the semi-implicit Euler scheme is unstable above {limit:.4g} s")
+        if not self.speed > 0:
+            bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
+        if self.n_waves < 2:
+            bad(f"{prefix}.n_waves", self.n_waves, "must be >= 2")
+        if self.amplitude not in ("paper", "iso"):
+            bad(f"{prefix}.amplitude", self.amplitude, "one of paper, iso")
+        if not self.road_classes:
+            bad("road.classes", list(self.road_classes), f"a non-empty list of classes from {', '.join(ROAD_CLASSES)}")
+        for c in self.road_classes:
+            if c not in ROAD_CLASSES:
+                bad("road.classes", list(self.road_classes), f"each class must be one of {', '.join(ROAD_CLASSES)}")
+        if self.m3_min <= 0:
+            bad(f"{prefix}.m3_min", self.m3_min, "must be > 0 kg")
+        if self.m3_max < self.m3_min:
+            bad(f"{prefix}.m3_max", self.m3_max, f"empty mass range: must be >= data.m3_min = {self.m3_min}")
+        if self.measurement not in MEASUREMENTS:
+            bad(f"{prefix}.measurement", self.measurement, f"one of {', '.join(MEASUREMENTS)}")
+
+    def key(self) -> str:
+        payload = asdict(self)
+        payload["road_classes"] = list(self.road_classes)
+        payload["simulator_version"] = SIMULATOR_VERSION
+        return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
+
+
+@dataclass
+class QCMDataset:
+    """Arrays of one simulated dataset. Channels are float32 (n_recordings, n_steps); labels float64."""
+
+    spec: DatasetSpec
+    seat_acc: np.ndarray
+    body_acc: np.ndarray
+    rel_vel: np.ndarray
+    rel_disp: np.ndarray
+    params: np.ndarray  # (n, 2): p1 = C3 / m3, p2 = K3 / m3
+    m3: np.ndarray  # (n,)
+    road_id: np.ndarray  # (n,)
+    road_class: np.ndarray  # (n,) class letters
+
+    def __len__(self) -> int:
+        return self.seat_acc.shape[0]
+
+    @property
+    def nbytes(self) -> int:
+        return sum(getattr(self, n).nbytes for n in CHANNELS + ("params", "m3", "road_id", "road_class"))
+
+
+def generate_dataset(spec: DatasetSpec, chunk_bytes: int = 64 << 20) -> QCMDataset:
+    """Simulate every mass on every road.
+
+    The compiled fused kernel (physics.fused) writes the float32 channels directly; without numba, the numpy
+    path runs in chunks of roads to bound its float64 working memory. Both give the same numbers.
+    """
+    spec.validate()
+    rng = np.random.default_rng(spec.seed)
+    classes = rng.choice(list(spec.road_classes), size=spec.n_roads)
+    masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float)
+    roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, spec.amplitude, rng)
+
+    n = spec.n_roads * spec.n_masses
+    out = {c: np.empty((n, spec.n_steps), dtype=np.float32) for c in CHANNELS}
+    if fused.available():
+        road_of = np.repeat(np.arange(spec.n_roads), spec.n_masses)
+        fused.simulate_recordings(roads, road_of, masses.ravel(), spec.dt, spec.car, spec.measurement,
+                                  out=tuple(out[c] for c in CHANNELS))
+    else:
+        per_road = spec.n_masses * spec.n_steps * 8 * 6  # float64 working arrays per road
+        step = max(1, chunk_bytes // per_road)
+        for r0 in range(0, spec.n_roads, step):
+            r1 = min(spec.n_roads, r0 + step)
+            seat, body = simulate(roads[r0:r1, None, :], masses[r0:r1], spec.dt, spec.car, spec.measurement)
+            rel_vel, rel_disp = relative_states(seat, body, spec.dt, spec.measurement)
+            rows = slice(r0 * spec.n_masses, r1 * spec.n_masses)
+            # float64 physics ends here: the network and the objectives work in float32
+            for name, arr in zip(CHANNELS, (seat, body, rel_vel, rel_disp)):
+                out[name][rows] = arr.reshape(-1, spec.n_steps)
+    p1, p2 = spec.car.parameters(masses.ravel())
+    return QCMDataset(
+        spec=spec,
+        params=np.stack([p1, p2], axis=1),
+        m3=masses.ravel(),
+        road_id=np.repeat(np.arange(spec.n_roads), spec.n_masses),
+        road_class=np.repeat(classes, spec.n_masses),
+        **out,
+    )
+
+
+def cache_path(spec: DatasetSpec, cache_dir: str | os.PathLike) -> Path:
+    return Path(cache_dir).expanduser() / f"qcm-{spec.key()}.npz"
+
+
+_ARRAYS = CHANNELS + ("params", "m3", "road_id", "road_class")
+
+
+def _checksum(arrays: dict) -> str:
+    """sha256 over every stored array's bytes, in a fixed order: a truncated or altered file never matches."""
+    h = hashlib.sha256()
+    for name in _ARRAYS:
+        h.update(name.encode())
+        h.update(np.ascontiguousarray(arrays[name]).tobytes())
+    return h.hexdigest()
+
+
+def save_dataset(ds: QCMDataset, path: Path) -> None:
+    """Write atomically (files.write_atomic), so a crash leaves nothing loadable."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    arrays = {name: getattr(ds, name) for name in _ARRAYS}
+    arrays["road_class"] = arrays["road_class"].astype("U1")
+    checksum = _checksum(arrays)
+
+    def write(tmp: Path) -> None:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, key=np.array(ds.spec.key()), checksum=np.array(checksum), **arrays)
+
+    write_atomic(path, write)
+
+
+class CacheError(ValueError):
+    """A cache file that cannot be trusted: unreadable, truncated, altered, or another dataset's."""
+
+
+def load_dataset(spec: DatasetSpec, path: Path) -> QCMDataset:
+    try:
+        with np.load(path, allow_pickle=False) as f:
+            key, checksum = str(f["key"]), str(f["checksum"])
+            arrays = {name: f[name] for name in _ARRAYS}
+    except Exception as exc:  # zipfile, OSError, KeyError, ValueError: all mean "do not trust this file"
+        raise CacheError(f"cache file {path} is unreadable ({type(exc).__name__}: {exc})") from exc
+    if key != spec.key():
+        raise CacheError(f"cache file {path} holds another dataset (key {key}, expected {spec.key()})")
+    if _checksum(arrays) != checksum:
+        raise CacheError(f"cache file {path} fails its checksum (altered or corrupted)")
+    return QCMDataset(spec=spec, **arrays)
+
+
+def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -> QCMDataset:
+    """Load the dataset from the cache if present and intact, otherwise simulate it and store it.
+
+    A file lock makes concurrent jobs (a sweep) generate a dataset once: the others wait, then load it.
+    A cache file that fails its checks is regenerated, with a warning, never loaded.
+    """
+    spec.validate()
+    if cache_dir is None:
+        return generate_dataset(spec)
+    path = cache_path(spec, cache_dir)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with FileLock(str(path) + ".lock"):
+        if path.exists():
+            try:
+                ds = load_dataset(spec, path)
+                log.info("loaded cached dataset %s", path)
+                return ds
+            except CacheError as exc:
+                warnings.warn(f"{exc}; regenerating it", RuntimeWarning, stacklevel=2)
+                log.warning("%s; regenerating it", exc)
+        log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps,
+                 path)
+        ds = generate_dataset(spec)
+        save_dataset(ds, path)
+        return ds

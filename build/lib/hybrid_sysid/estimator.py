@@ -1,0 +1,220 @@
+"""A trained run as a tool: estimate p1 = C3 / m3, p2 = K3 / m3 and the seat mass m3 of recordings.
+
+``load_estimator(run_dir).predict(seat_acc, body_acc, dt)`` cuts K evenly spaced windows from each recording,
+gives them to the run's network exactly as training did (float32, shaped (batch, 2, data.window), channel 0
+seat, channel 1 body; eval mode, no gradients) and averages the K estimates. The command
+``hybrid-sysid-predict`` (hybrid_sysid.predict) only reads files and prints; it calls this same code.
+"""
+
+from __future__ import annotations
+
+import math
+from fractions import Fraction
+from pathlib import Path
+from typing import Sequence
+
+import numpy as np
+import pandas as pd
+import torch
+from omegaconf import DictConfig, OmegaConf
+from scipy.signal import resample_poly
+
+from hybrid_sysid.baselines import is_baseline
+from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.train import build_model
+
+DT_RTOL = 1e-9  # a recording's dt counts as the run's data.dt within this relative difference
+# The resampling ratio is a fraction with a denominator up to MAX_DENOMINATOR; the rate it gives may miss the
+# run's rate by RATIO_RTOL. A time scale off by e scales p1 by (1 + e) and p2 by (1 + e)^2: 1e-4 is far below
+# what any trained estimator resolves.
+MAX_DENOMINATOR = 1000
+RATIO_RTOL = 1e-4
+CHUNK = 4096  # windows per forward pass, so long recordings need bounded memory
+COLUMNS = ["recording", "steps", "windows", "p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
+
+
+class InputError(ValueError):
+    """Input the estimator cannot use; the message names the item, the value and what is allowed."""
+
+
+def load_estimator(run_dir: str | Path, checkpoint: str | Path | None = None) -> "Estimator":
+    """The trained network of a run directory written by ``hybrid-sysid``.
+
+    ``checkpoint``: None takes checkpoints/best.ckpt (what the run's metrics were computed with) or, when the
+    run never validated, last.ckpt; "best", "last" or a path pick one. A baseline run (no network) or a
+    directory without a config or checkpoint raises InputError (a ValueError) in one line.
+    """
+    run_dir = Path(run_dir)
+    path = run_dir / ".hydra" / "config.yaml"
+    if not path.is_file():
+        raise InputError(f"run = {run_dir} has no .hydra/config.yaml; allowed: a run directory written by "
+                         "hybrid-sysid")
+    try:
+        cfg = OmegaConf.load(path)
+    except Exception as exc:  # yaml's own errors are many classes; the message says which
+        raise InputError(f"run = {run_dir}: cannot read .hydra/config.yaml ({type(exc).__name__}: {exc})") from None
+    target = str(OmegaConf.select(cfg, "model.net._target_", default=""))
+    if is_baseline(target):
+        raise InputError(f"run = {run_dir} is a baseline (model.net._target_ = {target}) without a trained "
+                         "network; allowed: a run of a network model (fast_cnn, paper_cnn)")
+    return Estimator(_network(cfg, _checkpoint_path(run_dir, checkpoint)), cfg)
+
+
+def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
+    names = ("best.ckpt", "last.ckpt") if checkpoint is None else (f"{checkpoint}.ckpt",)
+    if checkpoint is not None and str(checkpoint) not in ("best", "last"):
+        candidates = [Path(checkpoint)]
+    else:
+        candidates = [run_dir / "checkpoints" / n for n in names]
+    for path in candidates:
+        if path.is_file():
+            return path
+    raise InputError(f"run = {run_dir} has no checkpoint {' or '.join(str(p) for p in candidates)}; allowed: "
+                     "a run that trained a network (hybrid-sysid writes checkpoints/best.ckpt and last.ckpt)")
+
+
+def _network(cfg: DictConfig, path: Path) -> torch.nn.Module:
+    """The run's network with the checkpoint's weights, built by the code that trained it. The only call into
+    the training code: if build_model gains arguments, this is the line to change."""
+    try:
+        state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
+    except Exception as exc:  # torch raises several classes for a truncated or foreign file
+        raise InputError(f"checkpoint {path} cannot be read ({type(exc).__name__}: {exc})") from None
+    model = build_model(cfg)
+    try:
+        model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
+    except RuntimeError as exc:  # another run's checkpoint: torch lists every mismatched key, one line each
+        raise InputError(f"checkpoint {path} does not fit the run's model.net ({cfg.model.net._target_}): "
+                         f"{str(exc).splitlines()[0]}") from None
+    return model.net
+
+
+class Estimator:
+    """A run's network and what it needs to read a recording: the run's dt, window and car."""
+
+    def __init__(self, net: torch.nn.Module, config: DictConfig):
+        self.net = net
+        self.config = config
+        self.dt = float(config.data.dt)
+        self.window = int(config.data.window)
+        self.car = QuarterCar(**config.get("car", {}))
+
+    def predict(self, seat_acc, body_acc, dt: float, windows: int = 8, resample: bool = False,
+                names: Sequence | None = None) -> pd.DataFrame:
+        """Estimates per recording: p1, p2 (1/s, 1/s^2) averaged over ``windows`` windows, their std over the
+        windows, and m3 (kg) from each, m3 = C3 / p1 and K3 / p2 for the run's car.
+
+        seat_acc, body_acc: float arrays in m/s^2, 1-D (one recording), 2-D (recordings, steps) or a list of
+        1-D arrays (recordings of different lengths). dt: their sampling interval in s; it must equal the run's
+        data.dt unless ``resample`` (then scipy's polyphase filter brings them to the run's rate). The K window
+        starts are evenly spaced over each recording, first at 0, last at the end. ``names`` label the
+        recordings (default 0, 1, ...). Bad input raises InputError (a ValueError).
+        """
+        if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or windows < 1:
+            raise InputError(f"windows = {windows!r} is not allowed: an integer >= 1")
+        recordings = _recordings(seat_acc, body_acc)
+        names = list(range(len(recordings))) if names is None else list(names)
+        if len(names) != len(recordings):
+            raise InputError(f"names has {len(names)} items for {len(recordings)} recordings: one name each")
+        dt = self._check_dt(dt, resample)
+        cut, steps = [], []
+        for name, (seat, body) in zip(names, recordings):
+            for channel, x in (("seat_acc", seat), ("body_acc", body)):
+                bad = np.flatnonzero(~np.isfinite(x))
+                if bad.size:
+                    raise InputError(f"{channel} of recording {name!r} holds {x[bad[0]]} at step {bad[0]}: "
+                                     "every value must be finite")
+            signals = np.stack([seat, body])  # channel 0 seat, 1 body, as QCMData.batch stacks them
+            if dt != self.dt:
+                signals = resample_to(signals, dt, self.dt)
+            steps.append(signals.shape[1])
+            cut.append(self._windows(signals, int(windows), name, resampled=dt != self.dt))
+        estimates = self._estimate(np.concatenate(cut)).reshape(len(recordings), int(windows), 2)
+        p = estimates.mean(axis=1)
+        spread = estimates.std(axis=1)  # of the K window estimates; 0 for K = 1
+        return pd.DataFrame({
+            "recording": names, "steps": steps, "windows": int(windows),
+            "p1": p[:, 0], "p1_std": spread[:, 0], "p2": p[:, 1], "p2_std": spread[:, 1],
+            "m3_from_p1": self.car.c3 / p[:, 0], "m3_from_p2": self.car.k3 / p[:, 1]}, columns=COLUMNS)
+
+    def _check_dt(self, dt, resample: bool) -> float:
+        given = dt
+        try:
+            dt = float(dt)
+        except (TypeError, ValueError):
+            dt = math.nan
+        if not (math.isfinite(dt) and dt > 0):
+            raise InputError(f"dt = {given!r} is not allowed: a finite sampling interval > 0 in seconds")
+        if abs(dt - self.dt) <= DT_RTOL * self.dt:
+            return self.dt
+        if not resample:
+            raise InputError(f"dt = {dt:g} s differs from the run's data.dt = {self.dt:g} s; allowed: within "
+                             f"{DT_RTOL:g} relative, or pass resample=true to resample to the run's rate")
+        _ratio(dt, self.dt)  # fails here, before any work, if no fraction is close enough
+        return dt
+
+    def _windows(self, signals: np.ndarray, k: int, name, resampled: bool) -> np.ndarray:
+        """(K, 2, window) windows at starts 0, ..., n - window, evenly spaced (integer division: distinct
+        whenever K <= n - window + 1)."""
+        n, w = signals.shape[1], self.window
+        after = " after resampling to the run's dt" if resampled else ""
+        if n < w:
+            raise InputError(f"recording {name!r} has {n} steps{after}; allowed: at least the run's "
+                             f"data.window = {w} steps ({w * self.dt:g} s)")
+        if k > n - w + 1:
+            raise InputError(f"windows = {k} is not allowed for recording {name!r}: its {n} steps{after} offer "
+                             f"{n - w + 1} distinct starts of a {w}-step window; allowed: 1 to {n - w + 1}")
+        starts = np.arange(k) * (n - w) // max(k - 1, 1)
+        return np.lib.stride_tricks.sliding_window_view(signals, w, axis=1)[:, starts].transpose(1, 0, 2)
+
+    @torch.no_grad()
+    def _estimate(self, windows: np.ndarray) -> np.ndarray:
+        """(n, 2, window) float64 -> (n, 2) float64 estimates, in chunks."""
+        self.net.eval()
+        out = [self.net(torch.from_numpy(windows[i:i + CHUNK].astype(np.float32))).numpy()
+               for i in range(0, len(windows), CHUNK)]
+        return np.concatenate(out).astype(np.float64)
+
+
+def _recordings(seat_acc, body_acc) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(seat, body) float64 1-D pairs, one per recording, with equal lengths checked."""
+    def split(name, x) -> list[np.ndarray]:
+        try:
+            if isinstance(x, (list, tuple)) and x and np.ndim(x[0]) == 1:
+                return [np.asarray(r, dtype=np.float64) for r in x]
+            x = np.asarray(x, dtype=np.float64)
+        except (TypeError, ValueError) as exc:
+            raise InputError(f"{name} cannot be read as numbers ({exc}); allowed: float arrays in m/s^2") from None
+        if x.ndim not in (1, 2) or x.size == 0:
+            raise InputError(f"{name} has shape {x.shape}; allowed: 1-D (one recording), 2-D (recordings, steps) "
+                             "or a list of 1-D arrays, not empty")
+        return [x] if x.ndim == 1 else list(x)
+
+    seat, body = split("seat_acc", seat_acc), split("body_acc", body_acc)
+    if len(seat) != len(body):
+        raise InputError(f"seat_acc holds {len(seat)} recordings and body_acc {len(body)}: they must be equal")
+    for i, (s, b) in enumerate(zip(seat, body)):
+        if s.shape != b.shape or s.ndim != 1:
+            raise InputError(f"recording {i}: seat_acc has shape {s.shape} and body_acc {b.shape}; allowed: "
+                             "two 1-D arrays of one length")
+    return list(zip(seat, body))
+
+
+def _ratio(dt_from: float, dt_to: float) -> Fraction:
+    """up / down, the resampling factor of the sample rate: dt_from / dt_to as a small fraction."""
+    ratio = Fraction(dt_from / dt_to).limit_denominator(MAX_DENOMINATOR)
+    if ratio == 0 or abs(float(ratio) * dt_to / dt_from - 1) > RATIO_RTOL:
+        raise InputError(f"dt = {dt_from:g} s cannot be resampled to the run's data.dt = {dt_to:g} s: no fraction "
+                         f"with a denominator up to {MAX_DENOMINATOR} is within {RATIO_RTOL:g} of their ratio")
+    return ratio
+
+
+def resample_to(x: np.ndarray, dt_from: float, dt_to: float) -> np.ndarray:
+    """x (..., n) sampled every dt_from seconds, resampled along its last axis to every dt_to seconds with
+    scipy.signal.resample_poly (anti-aliasing FIR, no phase shift). padtype "line" extends each end by a
+    fitted line rather than zeros, so the first and last windows (which every K includes) see no step at the
+    edge."""
+    r = _ratio(dt_from, dt_to)
+    if r == 1:
+        return np.asarray(x, dtype=np.float64)
+    return resample_poly(x, r.numerator, r.denominator, axis=-1, padtype="line")

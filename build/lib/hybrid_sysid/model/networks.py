@@ -1,0 +1,123 @@
+"""The two parameter estimators: the paper's CNN (sec. 2.4) and a compact CNN that learns in minutes on a CPU.
+
+Both map a batch of sensor windows (B, 2, W) -- channel 0 seat z'', channel 1 body y'' -- to (B, 2) positive
+predictions (p1, p2) in physical units (1/s, 1/s^2), so every objective sees the same thing. Both are told the
+prior of p = (C3, K3) / m3 (the car's and the seat masses' range): the run's config derives it
+(``${p_prior:...}``, hybrid_sysid.config), so another car or mass range moves it too.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import torch
+from torch import nn
+
+from hybrid_sysid.model.checks import check_int, check_pair
+
+ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "none": nn.Identity}
+
+
+class PaperCNN(nn.Module):
+    """The paper's network: Conv1d(100, k=50) tanh, Conv1d(100, k=10), flatten, dense 100, 10, 2, |.|.
+
+    The paper names tanh only after the first convolution. ``activation`` (default tanh) is put after the
+    second convolution and after the dense 100 and 10 layers: without it, conv2 -> dense 100 -> 10 -> 2 collapse
+    into a single linear map and the extra layers would be pointless; tanh is the paper's only named activation.
+    ``activation="none"`` gives the literal reading. The abs output is multiplied by a fixed label scale
+    ``p_scale`` (a buffer; the midpoint of the prior), so the raw outputs are of order 1: an abs(linear) head from
+    random weights otherwise needs very many steps just to reach p2 ~ 1000 (docs/design.md, "Choices the paper
+    leaves open").
+    """
+
+    def __init__(self, p_scale: Sequence[float], window: int = 500, in_channels: int = 2,
+                 activation: str = "tanh"):
+        super().__init__()
+        window = check_int("window", window, 59)  # both 'valid' convolutions need 50 + 10 - 1 samples
+        in_channels = check_int("in_channels", in_channels, 1)
+        if activation not in ACTIVATIONS:
+            raise ValueError(f"activation = {activation!r} is unknown; allowed: {', '.join(ACTIVATIONS)}")
+        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
+        act = ACTIVATIONS[activation]
+        flat = 100 * (window - 50 + 1 - 10 + 1)
+        self.net = nn.Sequential(
+            nn.Conv1d(in_channels, 100, kernel_size=50), nn.Tanh(),
+            nn.Conv1d(100, 100, kernel_size=10), act(),
+            nn.Flatten(),
+            nn.Linear(flat, 100), act(),
+            nn.Linear(100, 10), act(),
+            nn.Linear(10, 2),
+        )
+
+    def forward(self, signals: torch.Tensor) -> torch.Tensor:
+        return self.net(signals).abs() * self.p_scale
+
+
+class FastCNN(nn.Module):
+    """A compact 1D CNN: n_layers x [Conv1d stride 2, BatchNorm, ReLU], global average pooling, linear head.
+
+    Input conditioning, because the raw accelerations span ~16x in amplitude between road classes A and E:
+    each window is divided by its body channel's RMS (the seat/body ratio, which carries p, is kept), and the
+    seat-minus-body difference is added as a third channel (the relative motion that the seat spring and
+    damper act on). The head is bounded: log p = log p_lo + (log p_hi - log p_lo) sigmoid(h), with the prior
+    [p_min, p_max] widened by ``margin`` (as a fraction of the log range) on each side so the true extremes are
+    not at the sigmoid's flat ends. A bounded head starts every prediction inside the prior, which keeps the
+    hybrid objective sane from step 0; log scaling matches p ~ 1/m3 and the relative-deviation metric.
+
+    The defaults (32 channels, kernel 9) were chosen for accuracy per CPU second of training on data=default:
+    more channels cost more per step than they gained. ``downsample="stride"`` (a stride-2 convolution) halves
+    the sequence in each layer instead of a stride-1 convolution followed by MaxPool(2) (``"pool"``): it computes
+    half the convolution outputs and skips max pooling, so a step costs less, and although it learns a little
+    less per step it is ahead per second of training. BatchNorm, ReLU, max and mean pooling are deterministic
+    on the CPU. ``bn_momentum`` 0.01 (torch's default is 0.1) averages the running statistics over ~100
+    batches, so the eval-mode statistics, and with them the test error, do not follow the last few training
+    batches.
+    """
+
+    def __init__(self, p_min: Sequence[float], p_max: Sequence[float], in_channels: int = 2, channels: int = 32,
+                 n_layers: int = 4, kernel_size: int = 9, margin: float = 0.1, diff_channel: bool = True,
+                 bn_momentum: float = 0.01, downsample: str = "stride"):
+        super().__init__()
+        in_channels = check_int("in_channels", in_channels, 1)
+        channels = check_int("channels", channels, 1)
+        n_layers = check_int("n_layers", n_layers, 1)
+        kernel_size = check_int("kernel_size", kernel_size, 1)
+        if kernel_size % 2 == 0:
+            raise ValueError(f"kernel_size = {kernel_size} is invalid; it must be odd (for 'same' padding)")
+        if not (math.isfinite(margin) and 0 <= margin <= 1):
+            raise ValueError(f"margin = {margin} is invalid; it must be in [0, 1]")
+        if not (math.isfinite(bn_momentum) and 0 < bn_momentum <= 1):
+            raise ValueError(f"bn_momentum = {bn_momentum} is invalid; it must be in (0, 1]")
+        if downsample not in ("pool", "stride"):
+            raise ValueError(f"downsample = {downsample!r} is unknown; allowed: pool, stride")
+        if diff_channel and in_channels != 2:
+            raise ValueError(f"in_channels = {in_channels} is invalid with diff_channel=True; it must be 2")
+        lo, hi = check_pair("p_min", p_min), check_pair("p_max", p_max)
+        if not all(a < b for a, b in zip(lo, hi)):
+            raise ValueError(f"p_min = {p_min} must be below p_max = {p_max} for each parameter")
+        log_lo, log_hi = torch.tensor(lo).log(), torch.tensor(hi).log()
+        pad = margin * (log_hi - log_lo)
+        self.register_buffer("log_lo", log_lo - pad)
+        self.register_buffer("log_span", (log_hi - log_lo) + 2 * pad)
+        self.diff_channel = bool(diff_channel)
+
+        layers, c_in = [], in_channels + int(self.diff_channel)
+        stride = 2 if downsample == "stride" else 1
+        for _ in range(n_layers):
+            layers += [nn.Conv1d(c_in, channels, kernel_size, stride=stride, padding=kernel_size // 2, bias=False),
+                       nn.BatchNorm1d(channels, momentum=bn_momentum), nn.ReLU()]
+            if downsample == "pool":
+                layers.append(nn.MaxPool1d(2))
+            c_in = channels
+        self.features = nn.Sequential(*layers)
+        self.head = nn.Linear(channels, 2)
+
+    def forward(self, signals: torch.Tensor) -> torch.Tensor:
+        # per-window scale from the body channel; the floor only guards an all-zero (parked) window
+        rms = signals[:, 1:2].pow(2).mean(dim=-1, keepdim=True).sqrt().clamp_min(1e-8)
+        x = signals / rms
+        if self.diff_channel:
+            x = torch.cat([x, x[:, :1] - x[:, 1:2]], dim=1)
+        h = self.features(x).mean(dim=-1)
+        return torch.exp(self.log_lo + self.log_span * torch.sigmoid(self.head(h)))

@@ -1,0 +1,19 @@
+"""The quarter-car physics in plain numpy (no torch, Lightning or Hydra), usable from a notebook."""
+
+from hybrid_sysid.physics import fused
+from hybrid_sysid.physics.integrate import integrate, relative_states
+from hybrid_sysid.physics.quarter_car import QuarterCar, simulate, stable_dt_limit
+from hybrid_sysid.physics.road import ROAD_CLASSES, road_profiles, wave_amplitudes, wave_numbers
+
+__all__ = [
+    "ROAD_CLASSES",
+    "QuarterCar",
+    "fused",
+    "integrate",
+    "relative_states",
+    "road_profiles",
+    "simulate",
+    "stable_dt_limit",
+    "wave_amplitudes",
+    "wave_numbers",
+]

@@ -1,0 +1,92 @@
+"""Random road profiles after ISO 8608, as written in the paper (eq. 2-6).
+
+r(s) = sum_i A_i sin(w_i s - phi_i), with w_i evenly spaced from w1 = 0.02 pi to wM = 6 pi rad/m,
+Phi(w) = Phi(w0) (w / w0)^-2, Phi(w0) = 2^k 1e-6 (k = 0, 2, ..., 8 for classes A..E), w0 = 1 rad/m.
+"""
+
+from __future__ import annotations
+
+from concurrent.futures import ThreadPoolExecutor
+from typing import Sequence
+
+import numpy as np
+
+ROAD_CLASSES = "ABCDE"
+_CLASS_EXPONENT = {c: 2 * i for i, c in enumerate(ROAD_CLASSES)}  # A: k=0 ... E: k=8
+OMEGA_0 = 1.0
+OMEGA_1 = 0.02 * np.pi
+OMEGA_M = 6.0 * np.pi
+AMPLITUDE_FORMS = ("paper", "iso")
+
+
+def _check_classes(road_classes: Sequence[str]) -> list[str]:
+    classes = list(road_classes)
+    bad = sorted({c for c in classes if c not in _CLASS_EXPONENT})
+    if bad:
+        raise ValueError(f"road class {bad[0]!r} is unknown; allowed classes are {', '.join(ROAD_CLASSES)}")
+    return classes
+
+
+def wave_numbers(n_waves: int = 300) -> np.ndarray:
+    """The paper's w_i = w1 + (i - 1) dw, i = 1..M, dw = (wM - w1) / (M - 1), in rad/m."""
+    if n_waves < 2:
+        raise ValueError(f"n_waves = {n_waves} is too small; it must be at least 2")
+    return np.linspace(OMEGA_1, OMEGA_M, n_waves)
+
+
+def class_psd(road_class: str) -> float:
+    """Phi(w0) = 2^k 1e-6 m^3 for the class (eq. 5)."""
+    (c,) = _check_classes([road_class])
+    return 2.0 ** _CLASS_EXPONENT[c] * 1e-6
+
+
+def wave_amplitudes(road_class: str, n_waves: int = 300, amplitude: str = "paper") -> np.ndarray:
+    """A_i for one class.
+
+    ``"paper"`` is eq. 3, sqrt(Phi dw / pi); ``"iso"`` is the common sqrt(2 Phi dw), whose road RMS is
+    sqrt(2 pi) ~ 2.5 times larger.
+    """
+    if amplitude not in AMPLITUDE_FORMS:
+        raise ValueError(f"amplitude = {amplitude!r} is unknown; allowed: {', '.join(AMPLITUDE_FORMS)}")
+    w = wave_numbers(n_waves)
+    dw = w[1] - w[0]
+    phi = class_psd(road_class) * (w / OMEGA_0) ** -2
+    return np.sqrt(phi * dw / np.pi) if amplitude == "paper" else np.sqrt(2.0 * phi * dw)
+
+
+def road_profiles(
+    road_classes: Sequence[str],
+    n_steps: int,
+    dt: float,
+    speed: float,
+    n_waves: int = 300,
+    amplitude: str = "paper",
+    rng: np.random.Generator | int | None = None,
+) -> np.ndarray:
+    """Road displacement r(t_k), t_k = k dt, s = speed * t, one road per class letter: (n_roads, n_steps).
+
+    Phases are uniform on [0, 2 pi), drawn from ``rng``. Every road shares one sine/cosine basis over
+    (steps, waves), so sin(w s - phi) = sin(w s) cos(phi) - cos(w s) sin(phi) becomes two matrix products.
+    """
+    classes = _check_classes(road_classes)
+    if n_steps < 1:
+        raise ValueError(f"n_steps = {n_steps} must be at least 1")
+    if not dt > 0:
+        raise ValueError(f"dt = {dt} must be > 0")
+    if not speed > 0:
+        raise ValueError(f"speed = {speed} must be > 0")
+    rng = np.random.default_rng(rng)
+    phases = rng.uniform(0.0, 2.0 * np.pi, size=(len(classes), n_waves))
+
+    base = wave_amplitudes("A", n_waves, amplitude)  # class A; each class step doubles the amplitude
+    scale = np.array([2.0 ** (_CLASS_EXPONENT[c] / 2) for c in classes])
+    s = speed * dt * np.arange(n_steps)
+    arg = np.outer(s, wave_numbers(n_waves))  # (steps, waves)
+    with ThreadPoolExecutor(1) as pool:  # numpy releases the GIL: sin on a second core while cos runs here
+        sin_job = pool.submit(np.sin, arg)
+        cos_basis = np.cos(arg)
+        sin_basis = sin_job.result()
+    coef_sin = base * np.cos(phases)  # (roads, waves)
+    coef_cos = base * np.sin(phases)
+    road = coef_sin @ sin_basis.T - coef_cos @ cos_basis.T
+    return road * scale[:, None]

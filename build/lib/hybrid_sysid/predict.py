@@ -1,0 +1,228 @@
+"""``hybrid-sysid-predict``: estimate p1, p2 and the seat mass m3 of recordings with a trained run.
+
+    hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true] [dt=SECONDS]
+
+The command parses its key=value arguments, reads the file and prints; the estimates come from
+``hybrid_sysid.estimator``, the code the Python API runs. Bad input prints one line on stderr naming the
+problem and exits with status 2. File formats and output columns: docs/predict.md.
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from hybrid_sysid.estimator import DT_RTOL, InputError, load_estimator
+from hybrid_sysid.files import write_atomic
+
+USAGE = ("usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true|false] "
+         "[dt=SECONDS]")
+KEYS = ("run", "input", "output", "windows", "resample", "dt")
+CHANNELS = ("seat_acc", "body_acc")
+# A time column's steps may each differ from their mean by this fraction: time stamps rounded to a few
+# decimals jitter, a missing sample or a changed rate shows as a step twice the mean or more.
+UNIFORM_RTOL = 0.01
+
+
+@dataclass
+class Recordings:
+    """What an input file holds: seat and body accelerations (an array, or a list of 1-D arrays), names, dt."""
+
+    seat: object
+    body: object
+    dt: float
+    names: list | None = None
+
+
+def parse_args(argv: list[str]) -> dict:
+    """key=value arguments -> {run, input, output, windows, resample, dt}, each checked."""
+    args: dict = {}
+    for arg in argv:
+        key, sep, value = arg.partition("=")
+        if not sep:
+            raise InputError(f"argument {arg!r} is not key=value; allowed keys: {', '.join(KEYS)}")
+        if key not in KEYS:
+            raise InputError(f"unknown key {key!r} in {arg!r}; allowed keys: {', '.join(KEYS)}")
+        if key in args:
+            raise InputError(f"{key} is given twice ({key}={args[key]} and {arg}); give it once")
+        args[key] = value
+    for key in ("run", "input"):
+        if not args.get(key):
+            raise InputError(f"{key}= is missing; {USAGE}")
+    windows = args.get("windows", "8")
+    try:
+        args["windows"] = int(windows)
+    except ValueError:
+        args["windows"] = 0
+    if args["windows"] < 1:
+        raise InputError(f"windows = {windows!r} is not allowed: an integer >= 1")
+    resample = args.get("resample", "false").lower()
+    if resample not in ("true", "false"):
+        raise InputError(f"resample = {args['resample']!r} is not allowed: true or false")
+    args["resample"] = resample == "true"
+    if "dt" in args:
+        try:
+            dt = float(args["dt"])
+        except ValueError:
+            dt = math.nan
+        if not (math.isfinite(dt) and dt > 0):
+            raise InputError(f"dt = {args['dt']!r} is not allowed: a sampling interval > 0 in seconds")
+        args["dt"] = dt
+    return args
+
+
+def read_input(path: Path, dt: float | None = None) -> Recordings:
+    """A .npz or CSV file (any other suffix) as Recordings; ``dt`` (the dt= argument) stands in for the file's
+    time column or dt array, or overrides it when it agrees within UNIFORM_RTOL (for rounded time stamps)."""
+    if not path.exists():
+        raise InputError(f"input = {path}: no such file")
+    if path.is_file() and path.stat().st_size == 0:
+        raise InputError(f"input = {path} is empty; allowed: a CSV or .npz file of recordings (docs/predict.md)")
+    return read_npz(path, dt) if path.suffix == ".npz" else read_csv(path, dt)
+
+
+def read_csv(path: Path, dt: float | None) -> Recordings:
+    """Columns seat_acc, body_acc, and time (s, uniform) unless dt is given; an optional column ``recording``
+    names the recording of each row (several recordings in one file)."""
+    try:
+        df = pd.read_csv(path, skipinitialspace=True)
+    except pd.errors.EmptyDataError:
+        raise InputError(f"input = {path} is empty; allowed: a header line and rows (docs/predict.md)") from None
+    except (OSError, UnicodeDecodeError, pd.errors.ParserError) as exc:
+        raise InputError(f"input = {path} cannot be read as CSV ({type(exc).__name__}: {exc})") from None
+    needed = list(CHANNELS) + ([] if dt is not None else ["time"])
+    missing = [c for c in needed if c not in df.columns]
+    if missing:
+        raise InputError(f"input = {path} has no column {', '.join(missing)} (its columns: "
+                         f"{', '.join(map(str, df.columns))}); needed: seat_acc, body_acc, and time or dt=")
+    if df.empty:
+        raise InputError(f"input = {path} holds a header but no rows; allowed: one row per sample")
+    columns = [c for c in (*CHANNELS, "time") if c in df.columns]
+    for c in columns:
+        df[c] = numbers(df[c], path)
+    groups = df.groupby("recording", sort=False, dropna=False) if "recording" in df.columns else [(0, df)]
+    names, seat, body, steps = [], [], [], []
+    for name, g in groups:
+        name = name.item() if isinstance(name, np.generic) else name  # a plain int or str in messages
+        names.append(name)
+        seat.append(g["seat_acc"].to_numpy(np.float64))
+        body.append(g["body_acc"].to_numpy(np.float64))
+        if "time" in g:
+            steps.append((name, uniform_step(g["time"].to_numpy(np.float64), path, name)))
+    if dt is not None:  # it stands for every recording's rate: each must agree with it
+        for name, s in steps:
+            choose_dt(s, dt, path, f"the time step of recording {name!r}")
+        return Recordings(seat, body, dt, names)
+    (first, step), others = steps[0], steps[1:]
+    for name, s in others:
+        if abs(s - step) > DT_RTOL * step:
+            raise InputError(f"input = {path}: recording {name!r} has a time step of {s:.9g} s, recording "
+                             f"{first!r} {step:.9g} s; allowed: one sample rate per file (within {DT_RTOL:g} "
+                             "relative; give dt= when the time stamps are rounded)")
+    return Recordings(seat, body, step, names)
+
+
+def numbers(column: pd.Series, path: Path) -> pd.Series:
+    """The column as floats; text that is not a number is an error (empty cells become NaN, which the
+    estimator reports with the recording and step)."""
+    values = pd.to_numeric(column, errors="coerce")
+    bad = np.flatnonzero(values.isna().to_numpy() & column.notna().to_numpy())
+    if bad.size:
+        raise InputError(f"input = {path}: column {column.name} holds {column.iloc[bad[0]]!r} in data row "
+                         f"{bad[0] + 1}; allowed: numbers")
+    return values
+
+
+def uniform_step(t: np.ndarray, path: Path, name) -> float:
+    """The time column's step, (t_last - t_first) / (n - 1), after checking every step lies near it."""
+    where = f"input = {path}: column time of recording {name!r}"
+    if not np.isfinite(t).all():
+        raise InputError(f"{where} holds {t[~np.isfinite(t)][0]}; allowed: finite times in seconds")
+    if len(t) < 2:
+        raise InputError(f"{where} has {len(t)} row; allowed: at least 2 rows to give the step")
+    step, steps = (t[-1] - t[0]) / (len(t) - 1), np.diff(t)
+    off = np.flatnonzero(np.abs(steps - step) > UNIFORM_RTOL * abs(step)) if step > 0 else [0]
+    if len(off):
+        k = off[0]
+        raise InputError(f"{where} is not uniform: from {t[k]:g} s to {t[k + 1]:g} s is a step of {steps[k]:g} s "
+                         f"against a mean of {step:g} s; allowed: increasing times, every step within "
+                         f"{UNIFORM_RTOL:.0%} of the mean")
+    return float(step)
+
+
+def choose_dt(file_dt: float, dt: float | None, path: Path, what: str) -> float:
+    """dt= when given (it must agree with the file within UNIFORM_RTOL), else the file's own dt."""
+    if dt is None:
+        return file_dt
+    if abs(file_dt - dt) > UNIFORM_RTOL * dt:
+        raise InputError(f"dt = {dt:g} s disagrees with {what} of input = {path} ({file_dt:g} s); allowed: "
+                         f"within {UNIFORM_RTOL:.0%}, or leave dt= out")
+    return dt
+
+
+def read_npz(path: Path, dt: float | None) -> Recordings:
+    """Arrays seat_acc and body_acc, 1-D (one recording) or 2-D (recordings, steps), and a scalar dt in s."""
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (OSError, ValueError, EOFError, AttributeError) as exc:  # AttributeError: a plain .npy, not an archive
+        raise InputError(f"input = {path} cannot be read as .npz ({type(exc).__name__}: {exc})") from None
+    needed = list(CHANNELS) + ([] if dt is not None else ["dt"])
+    missing = [k for k in needed if k not in arrays]
+    if missing:
+        raise InputError(f"input = {path} has no array {', '.join(missing)} (its arrays: {', '.join(arrays)}); "
+                         "needed: seat_acc, body_acc, and dt or dt=")
+    for k in CHANNELS:
+        a = arrays[k]
+        if a.dtype.kind not in "fiu" or a.ndim not in (1, 2) or a.size == 0:
+            raise InputError(f"input = {path}: array {k} has dtype {a.dtype} and shape {a.shape}; allowed: numbers, "
+                             "1-D (one recording) or 2-D (recordings, steps), not empty")
+    if "dt" in arrays:
+        a = arrays["dt"]
+        if a.dtype.kind not in "fiu" or a.size != 1 or not (np.isfinite(a).all() and a.item() > 0):
+            raise InputError(f"input = {path}: array dt is {a.tolist()!r}; allowed: one number > 0 (seconds)")
+        dt = choose_dt(float(a.item()), dt, path, "the array dt")
+    return Recordings(arrays["seat_acc"], arrays["body_acc"], dt)
+
+
+def run(args: dict) -> pd.DataFrame:
+    """Read, estimate, print the table and write output= when given."""
+    output = Path(args["output"]) if args.get("output") else None
+    if output is not None and not output.parent.is_dir():
+        raise InputError(f"output = {output}: its directory {output.parent} does not exist")
+    recordings = read_input(Path(args["input"]), args.get("dt"))
+    estimator = load_estimator(args["run"])
+    try:
+        table = estimator.predict(recordings.seat, recordings.body, recordings.dt, windows=args["windows"],
+                                  resample=args["resample"], names=recordings.names)
+    except InputError as exc:
+        raise InputError(f"input = {args['input']}: {exc}") from None
+    print(table.to_string(index=False))
+    if output is not None:
+        try:
+            write_atomic(output, lambda tmp: table.to_csv(tmp, index=False))
+        except OSError as exc:
+            raise InputError(f"output = {output} cannot be written ({exc})") from None
+    return table
+
+
+def main(argv: list[str] | None = None) -> None:
+    """Console script; exit status 2 with one line on stderr for bad input."""
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv and argv[0] in ("-h", "--help"):
+        print(__doc__)
+        return
+    try:
+        run(parse_args(argv))
+    except InputError as exc:
+        print(f"hybrid-sysid-predict: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        sys.exit(2)
+
+
+if __name__ == "__main__":
+    main()

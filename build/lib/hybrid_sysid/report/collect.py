@@ -1,0 +1,152 @@
+"""Finding run directories and reading their records into one long-form table.
+
+A run is a directory holding a record (metrics.json). Hydra's files beside it (.hydra/overrides.yaml,
+config.yaml, hydra.yaml) give a run's configuration when its record cannot be read, and the value of a key the run
+did not override. Override values stay the strings Hydra recorded, so "0.002" and "2e-3" stay distinct rows. A
+results row's "windows" (K, test-time averaging over K windows per recording) is 1 when absent.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import pandas as pd
+import yaml
+
+from hybrid_sysid.records import RECORD
+
+HEAD = ["run", "status", "error", "seed"]
+TAIL = ["split", "noise_std", "windows", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds"]
+RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
+
+
+def _yaml(path: Path):
+    try:
+        return yaml.safe_load(path.read_text())
+    except Exception:  # noqa: BLE001 - a missing or damaged file only leaves the configuration less complete
+        return None
+
+
+def run_config(run_dir) -> dict:
+    """The run's composed config as Hydra saved it (interpolations unresolved), {} if absent."""
+    cfg = _yaml(Path(run_dir) / ".hydra" / "config.yaml")
+    return cfg if isinstance(cfg, dict) else {}
+
+
+def run_choices(run_dir) -> dict:
+    """The run's config-group choices (objective, model, data, ...), {} if absent."""
+    return config_value(_yaml(Path(run_dir) / ".hydra" / "hydra.yaml"), "hydra.runtime.choices") or {}
+
+
+def config_value(cfg, dotted: str):
+    """cfg["a"]["b"] for dotted "a.b"; None where a level is missing."""
+    for part in dotted.split("."):
+        if not isinstance(cfg, dict) or part not in cfg:
+            return None
+        cfg = cfg[part]
+    return cfg
+
+
+def natural_key(values) -> list[tuple]:
+    """A sort key for a value or a tuple of values: numbers in numeric order ("9" before "10"), then text."""
+    out = []
+    for v in values if isinstance(values, tuple) else (values,):
+        try:
+            f = float(v)
+            out.append((0, f, "") if not math.isnan(f) else (1, 0.0, str(v)))
+        except (TypeError, ValueError):
+            out.append((1, 0.0, str(v)))
+    return out
+
+
+def _as_paths(paths) -> list[Path]:
+    return [Path(paths)] if isinstance(paths, (str, os.PathLike)) else [Path(p) for p in paths]
+
+
+def find_runs(paths) -> list[Path]:
+    """Every directory holding a record at or below each path (a run, a sweep, or a parent of sweeps), in
+    natural order, so Hydra's job 10 follows job 9."""
+    found = set()
+    for path in _as_paths(paths):
+        if (path / RECORD).is_file():
+            found.add(path.resolve())
+        found.update(p.parent.resolve() for p in path.rglob(RECORD) if p.is_file())
+    return sorted(found, key=lambda p: natural_key(p.parts))
+
+
+def _overrides(items) -> dict[str, str]:
+    out = {}
+    for item in items if isinstance(items, list) else []:
+        key, _, value = str(item).partition("=")
+        out[key.lstrip("+")] = value  # "+key=v" / "++key=v" set the same key as "key=v"
+    return out
+
+
+def _rows_of(run_dir: Path, name: str) -> list[dict]:
+    try:
+        rec = json.loads((run_dir / RECORD).read_text())
+        base = {"run": name, "status": str(rec["status"]), "error": rec.get("error"), "seed": rec.get("seed"),
+                "steps": rec.get("steps"), "train_seconds": rec.get("train_seconds")}
+        overrides = _overrides(rec.get("overrides"))
+        results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
+    except (OSError, ValueError, TypeError, KeyError, AttributeError) as exc:
+        # Hydra writes .hydra/overrides.yaml before a job starts, so a job whose record is corrupt still has a
+        # known configuration and lands in the right row of the table
+        overrides = _overrides(_yaml(run_dir / ".hydra" / "overrides.yaml"))
+        seed = overrides.get("seed", "")
+        base = {"run": name, "status": "unreadable", "error": f"{type(exc).__name__}: {exc}",
+                "seed": int(seed) if seed.lstrip("-").isdigit() else None}
+        results = []
+    overrides.pop("seed", None)  # the record's own seed column is authoritative
+    # a key named like a fixed column (unlikely) is prefixed rather than allowed to overwrite it
+    overrides = {(f"override:{k}" if k in HEAD + TAIL else k): v for k, v in overrides.items()}
+    return [{**base, **overrides, **r} for r in results or [{}]]  # no results: one row, NaN metrics
+
+
+def load_runs(paths) -> tuple[Path, pd.DataFrame]:
+    """The runs at or below paths in long form (see collect), and the directory their names are relative to:
+    the inputs' common parent, so runs of two merged sweeps ("a/0", "b/0") never share a name, and a single run
+    is named by its own name. Raises ValueError when the paths hold no run."""
+    paths = _as_paths(paths)
+    runs = find_runs(paths)
+    if not runs:
+        raise ValueError(f"paths={[str(p) for p in paths]} hold no run (no {RECORD} at or below them)")
+    root = Path(os.path.commonpath([p.resolve() for p in paths]))
+    root = root.parent if root in runs else root
+    names = {run.relative_to(root).as_posix(): run for run in runs}
+    df = pd.DataFrame([row for name, run in names.items() for row in _rows_of(run, name)])
+    keys = [c for c in df.columns if c not in HEAD + TAIL]  # first-seen order across runs
+    df = df.reindex(columns=HEAD + keys + TAIL)
+    df[keys] = df[keys].fillna("").astype(str)
+    # a run without a key ran with that key's default: read it from the run's saved choices or config, so
+    # sweeps merged with other sweeps land in the right rows ("" only when the run has no .hydra/)
+    for key in keys:
+        blank = df[key] == ""
+        for name in df.loc[blank, "run"].unique():
+            choices = run_choices(names[name])
+            value = choices[key] if key in choices else config_value(run_config(names[name]), key)
+            df.loc[blank & (df.run == name), key] = "" if value is None else str(value)
+    for col in ("seed", "windows", "n", "steps"):
+        df[col] = pd.to_numeric(df[col], errors="coerce").round().astype("Int64")  # NaN-safe, writes "1" not "1.0"
+    for col in ("noise_std", "mean_rel_dev", "std_rel_dev", "train_seconds"):
+        df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
+    return root, df
+
+
+def collect(paths) -> pd.DataFrame:
+    """Long form: one row per job x split x noise_std x windows x parameter; a failed or unreadable job is one
+    row with NaN metrics. Columns: run, status, error, seed, one per override key (strings, "" if unset), split,
+    noise_std, windows, parameter, mean_rel_dev, std_rel_dev, n, steps, train_seconds."""
+    return load_runs(paths)[1]
+
+
+def row_keys(df: pd.DataFrame) -> list[str]:
+    """The swept keys other than seed: those whose values differ between runs. Runs whose configuration is
+    unknown (unreadable, no .hydra) are left out of this choice so they cannot make every key look swept."""
+    runs = df.drop_duplicates("run")
+    known = runs[runs.status != "unreadable"]
+    runs = known if len(known) else runs
+    return [k for k in df.columns if k not in HEAD + TAIL and runs[k].nunique() > 1]

@@ -1,0 +1,83 @@
+"""A sweep's summary files, built from its run records on disk alone: summary.csv (collect's long form),
+summary.md (the comparison table and the failed jobs), summary.tex on request, and figures/."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from hybrid_sysid.files import write_atomic
+from hybrid_sysid.report import sweep_figures
+from hybrid_sysid.report.collect import load_runs, row_keys
+from hybrid_sysid.report.tables import (K_LEVEL, METRICS, compared_level, row_label, summary_table, to_latex,
+                                        to_markdown)
+
+
+def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
+    """A sentence naming K when every row of the split uses the same K other than 1 (the table then has no K
+    level to show it), else an empty string."""
+    if K_LEVEL in table.index.names:
+        return ""
+    ks = df[(df.status == "completed") & (df.split == split)].windows.dropna().unique()
+    return f" Windows averaged per recording: K = {int(ks[0])}." if len(ks) == 1 and ks[0] != 1 else ""
+
+
+def failed_lines(df: pd.DataFrame) -> list[str]:
+    """One markdown list item per failed or unreadable job (its swept values and seed, status and error)."""
+    keys, lines = row_keys(df), []
+    for _, r in df.drop_duplicates("run").query("status != 'completed'").iterrows():
+        config = ", ".join([f"{k}={r[k]}" for k in keys if r[k] != ""]
+                           + ([f"seed={r.seed}"] if pd.notna(r.seed) else []))
+        error = " ".join(str(r.error).split()) if pd.notna(r.error) else "no error recorded"
+        lines.append(f"- `{r.run}` ({config}): {r.status}: {error}")
+    return lines
+
+
+def _curves(df: pd.DataFrame, root: Path) -> pd.DataFrame:
+    """Each completed run's curves.csv, labelled by its table row; a missing or corrupt file is skipped."""
+    keys, frames = row_keys(df), []
+    for _, r in df[df.status == "completed"].drop_duplicates("run").iterrows():
+        try:
+            c = pd.read_csv(root / r.run / "curves.csv")
+        except (OSError, ValueError):
+            continue
+        frames.append(c.assign(run=r.run, label=row_label(keys, [r[k] for k in keys])))
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
+
+
+def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mean_rel_dev", figures: bool = True,
+                  latex: bool = False, compare: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """Write sweep_dir/summary.csv, summary.md, with ``latex`` summary.tex, and figures/ from the runs at or
+    below paths (default: sweep_dir). ``compare``: the row key whose values the marks compare (default:
+    objective when swept). Returns (long form, table)."""
+    sweep_dir = Path(sweep_dir)
+    root, df = load_runs(sweep_dir if paths is None else paths)
+    table = summary_table(df, split=split, metric=metric)
+    compared_level(table, compare)  # a bad compare key fails before anything is written
+    runs = df.drop_duplicates("run")
+    n_bad = int((runs.status != "completed").sum())
+    md = [f"# Sweep summary: {METRICS[metric]} on the {split} split [%]", "",
+          f"{len(runs)} runs: {len(runs) - n_bad} completed, {n_bad} failed or unreadable. Cells: mean ± sample "
+          f"standard deviation (ddof=1) over seeds.{windows_note(df, table, split)}", "",
+          to_markdown(table, compare=compare), "## Failed jobs", "", *(failed_lines(df) or ["None."])]
+    sweep_dir.mkdir(parents=True, exist_ok=True)
+    write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
+    write_atomic(sweep_dir / "summary.md", lambda p: p.write_text("\n".join(md) + "\n", encoding="utf-8"))
+    if latex:
+        caption = f"{METRICS[metric]} on the {split} split [%], mean ± std over seeds"
+        write_atomic(sweep_dir / "summary.tex",
+                     lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"))
+    if figures:
+        out = sweep_dir / "figures"
+        out.mkdir(exist_ok=True)
+        if any(c[2] == "mean" for c in table.columns):  # at least one completed run
+            write_atomic(out / "robustness.png",
+                         lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
+        curves = _curves(df, root)
+        # runs record curves on train and test only: other splits fall back to test
+        on = split if len(curves) and (curves["split"] == split).any() else "test"
+        if len(curves) and (curves["split"] == on).any():
+            write_atomic(out / "learning_curves_compared.png",
+                         lambda p: sweep_figures.learning_curves_compared(curves, p, metric=metric, split=on))
+    return df, table

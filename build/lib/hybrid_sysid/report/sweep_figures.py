@@ -1,0 +1,50 @@
+"""Figures comparing the rows of a sweep's table (e.g. labelled vs hybrid): robustness and learning curves."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import matplotlib.pyplot as plt
+import pandas as pd
+from matplotlib.ticker import NullLocator
+
+from hybrid_sysid.report.plotting import curves_figure, save_figure
+from hybrid_sysid.report.tables import METRICS, row_label
+
+
+def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_dev", split: str = "test") -> None:
+    """Metric against noise std, one line per table row, one panel per parameter; error bars: std over seeds.
+    x is symlog, linear below the smallest non-zero noise, so the clean level (0) is on the axis."""
+    cells = [c for c in table.columns if c[2] == "mean"]
+    params = sorted({p for _, p, _ in cells})
+    noises = sorted({n for n, _, _ in cells})
+    positive = [n for n in noises if n > 0]
+    fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
+    for ax, param in zip(axes[0], params):
+        x = [n for n in noises if (n, param, "mean") in table.columns]
+        for label, row in table.iterrows():
+            y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
+            err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
+            ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3,
+                        label=row_label(table.index.names, label if isinstance(label, tuple) else (label,)))
+        if positive and len(noises) > 1:
+            ax.set_xscale("symlog", linthresh=min(positive), linscale=0.5)
+        ax.set_xticks(x, [f"{n:g}" for n in x])  # ticks at the levels evaluated, not at decades
+        ax.xaxis.set_minor_locator(NullLocator())
+        ax.set_yscale("log")
+        ax.set(xlabel="noise std [m/s^2]", ylabel=METRICS[metric], title=param)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0, 0].legend(fontsize="small")
+    save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds")
+
+
+def learning_curves_compared(curves: pd.DataFrame, path: Path, metric: str = "mean_rel_dev",
+                             split: str = "test") -> None:
+    """From the runs' curves.csv rows (with a 'label' column naming the table row): the metric on the split
+    at noise 0 (or the lowest level recorded), mean over seeds per step, one line per label, one panel per
+    parameter."""
+    sub = curves[curves["split"] == split]
+    noise = 0.0 if sub.empty or (sub["noise_std"] == 0).any() else sub["noise_std"].min()
+    mean = sub[sub["noise_std"] == noise].groupby(["label", "parameter", "step"], as_index=False)[metric].mean()
+    curves_figure(mean, path, f"learning curves: {split} split, noise {noise:g}, mean over seeds", y=metric,
+                  ylabel=METRICS[metric])

@@ -1,0 +1,222 @@
+"""The comparison table of a sweep: mean ± seed spread per cell, the best row marked, and whether each other row's
+gap to it exceeds the seed spread; as GitHub markdown and as LaTeX (booktabs).
+
+The spread over seeds is the sample standard deviation (ddof=1); with a single seed it is NaN and no "±" is
+shown. The rule (one line, printed under every table): in each column, among rows that differ only in the
+compared key (``objective`` when it is swept), the lowest mean is **bold**; a row is marked † when its gap to the
+bold row is larger than the combined seed spread, |m_a - m_b| > s_a + s_b. A row with fewer than two seeds has no
+spread and is never marked †. Lower is better: both metrics are errors.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+from hybrid_sysid.report.collect import natural_key, row_keys
+
+METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
+BEST, WORSE, WITHIN, UNKNOWN = "best", "worse", "within", "unknown"
+DAGGER = "†"
+MIN_SEEDS = 3  # rows with fewer completed seeds get a warning under the table
+K_LEVEL = "K"  # the row level of test-time windows per recording, when several are present
+NO_KEYS = "all"  # the single row label when no override varies across runs
+
+
+def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel_dev") -> pd.DataFrame:
+    """From collect's long form. Rows: the swept values other than seed ("all" if none vary), plus a level "K"
+    when rows sharing those values hold more than one windows value. Columns (noise_std, parameter, stat): stat
+    "mean" and "std" (ddof=1) of the metric over the completed seeds; then ("n_seeds", "", "") counting completed
+    runs (with a K level: completed runs with results at that K) and ("n_failed", "", "") counting the others."""
+    if metric not in METRICS:
+        raise ValueError(f"metric={metric!r} is not one of {list(METRICS)}")
+    keys = row_keys(df)
+    if not keys:
+        df, keys = df.assign(**{NO_KEYS: NO_KEYS}), [NO_KEYS]
+    runs = df.drop_duplicates("run")
+    done = runs.status == "completed"
+    counts = pd.DataFrame({"n_seeds": done, "n_failed": ~done}).groupby([runs[k] for k in keys]).sum().astype(int)
+
+    sub = df[(df.status == "completed") & (df.split == split)]
+    rows = keys
+    if len(sub) and sub.groupby(keys).windows.nunique().max() > 1:  # several K under one row: K is a level
+        sub, rows = sub.assign(**{K_LEVEL: sub.windows}), keys + [K_LEVEL]
+        ks = sorted(sub[K_LEVEL].dropna().unique())
+        index = pd.MultiIndex.from_tuples([(*_as_tuple(c), k) for c in counts.index for k in ks], names=rows)
+        seeds = sub.groupby(rows).run.nunique().reindex(index).fillna(0).astype(int)
+        counts = pd.DataFrame({"n_seeds": seeds.to_numpy(), "n_failed": np.repeat(counts.n_failed.to_numpy(),
+                                                                                  len(ks))}, index=index)
+    counts.columns = pd.MultiIndex.from_tuples([(c, "", "") for c in counts.columns])
+
+    names = ["noise_std", "parameter", "stat"]
+    if len(sub):
+        stats = sub.groupby(rows + names[:2])[metric].agg(mean="mean", std=lambda s: s.std(ddof=1))
+        cells = stats.stack().unstack(names[:2] + [-1]).sort_index(axis=1)  # noise, parameter, mean|std
+    else:
+        cells = pd.DataFrame(index=counts.index, columns=pd.MultiIndex.from_tuples([], names=names))
+    table = pd.concat([cells.reindex(counts.index), counts], axis=1)
+    table.columns = table.columns.set_names(names)
+    return table.iloc[sorted(range(len(table)), key=lambda i: natural_key(table.index[i]))]
+
+
+def _as_tuple(label) -> tuple:
+    return label if isinstance(label, tuple) else (label,)
+
+
+def cell_columns(table: pd.DataFrame) -> list[tuple]:
+    """The (noise_std, parameter) pairs that have a "mean" column, in table order."""
+    return [c[:2] for c in table.columns if c[2] == "mean"]
+
+
+def compared_level(table: pd.DataFrame, compare: str | None = None) -> str | None:
+    """The index level whose values are compared: ``compare`` if given, else ``objective`` when it is a level,
+    else the first level that is not K. None for the single "all" row."""
+    names = [str(n) for n in table.index.names]
+    if compare is not None:
+        if compare not in names:
+            raise ValueError(f"compare={compare!r} is not a row key of the table; row keys: {names}")
+        return compare
+    if "objective" in names:
+        return "objective"
+    candidates = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
+    return candidates[0] if candidates else None
+
+
+def compare_marks(table: pd.DataFrame, compare: str | None = None) -> pd.DataFrame:
+    """One mark per row and (noise_std, parameter) column: "best" (lowest mean of its group, the first of equal
+    means), "worse" (gap to the best > s_best + s_row), "within" (gap <= that), "unknown" (a spread is missing:
+    fewer than 2 seeds), or "" (no mean, or no other row to compare with). A group is the rows sharing every
+    index level but the compared one."""
+    cols = cell_columns(table)
+    marks = pd.DataFrame("", index=table.index, columns=pd.MultiIndex.from_tuples(cols) if cols else None)
+    level = compared_level(table, compare)
+    if level is None or not cols:
+        return marks
+    others = [n for n in table.index.names if n != level]
+    frame = table.index.to_frame(index=False)
+    groups = [g.index.to_numpy() for _, g in frame.groupby(others, sort=False, dropna=False)] if others \
+        else [np.arange(len(table))]
+    for j, col in enumerate(cols):
+        mean = table[(*col, "mean")].astype(float).to_numpy()
+        std = table[(*col, "std")].astype(float).to_numpy()
+        for rows in groups:
+            rows = [r for r in rows if not math.isnan(mean[r])]
+            if len(rows) < 2:
+                continue
+            best = min(rows, key=lambda r: mean[r])
+            for r in rows:
+                if r == best:
+                    mark = BEST
+                elif math.isnan(std[r]) or math.isnan(std[best]):
+                    mark = UNKNOWN
+                else:
+                    mark = WORSE if abs(mean[r] - mean[best]) > std[r] + std[best] else WITHIN
+                marks.iloc[r, j] = mark
+    return marks
+
+
+def row_label(names, values) -> str:
+    """'objective=hybrid, road=(default)'; 'all' for the single row of a sweep where only the seed varies."""
+    names, values = list(names), list(values)
+    if names == [NO_KEYS]:
+        return NO_KEYS
+    return ", ".join(f"{n}={v}" for n, v in zip(names, _shown(values))) or NO_KEYS
+
+
+def _shown(values) -> list[str]:
+    return [str(v) if v != "" else "(default)" for v in values]
+
+
+def _tex(s: str) -> str:
+    """Escape LaTeX's special characters in plain text."""
+    out = s.replace("\\", "\0")
+    for a in "_%&#${}":
+        out = out.replace(a, "\\" + a)
+    return out.replace("\0", r"\textbackslash{}").replace("±", r"$\pm$")
+
+
+def legend(table: pd.DataFrame, compare: str | None = None, latex: bool = False) -> list[str]:
+    """The lines under a table: the marking rule and a warning for rows with fewer than MIN_SEEDS seeds."""
+    esc = _tex if latex else str
+    bold, dagger, rule = (r"\textbf{Bold}", r"$^\dagger$", r"$|m_a - m_b| > s_a + s_b$") if latex \
+        else ("**Bold**", DAGGER, "`|m_a - m_b| > s_a + s_b`")
+    lines = []
+    level = compared_level(table, compare)
+    if level is not None and cell_columns(table):
+        lines.append(f"{bold}: lowest mean in its column among rows that differ only in "
+                     f"{esc(level) if latex else f'`{level}`'}; {dagger}: its gap to the bold cell exceeds the "
+                     f"combined seed spread, {rule} (s: std over seeds, ddof=1); unmarked: within that spread, or "
+                     "fewer than 2 seeds.")
+    few = [(label, int(n)) for label, n in table[("n_seeds", "", "")].items() if n < MIN_SEEDS]
+    if few:
+        lines.append(f"Warning: fewer than {MIN_SEEDS} seeds in "
+                     + "; ".join(f"{esc(row_label(table.index.names, _as_tuple(label)))} ({n})" for label, n in few)
+                     + ": the spread over seeds is unreliable there.")
+    return lines
+
+
+def _md_cell(mean: str, std: str | None, mark: str) -> str:
+    text = mean if std is None else f"{mean} ± {std}"
+    return f"**{text}**" if mark == BEST else f"{text} {DAGGER}" if mark == WORSE else text
+
+
+def _tex_cell(mean: str, std: str | None, mark: str) -> str:
+    body = mean if std is None else f"{mean} \\pm {std}"
+    return f"$\\mathbf{{{body}}}$" if mark == BEST else f"${body}^{{\\dagger}}$" if mark == WORSE else f"${body}$"
+
+
+def _rows(table: pd.DataFrame, compare: str | None, cell) -> list[list[str]]:
+    """The body of the table as text: per row its labels, its cells (cell(mean, std or None, mark) in percent;
+    "n/a" without a mean) and its counts of seeds and failed jobs."""
+    cols = cell_columns(table)
+    marks = compare_marks(table, compare)
+    out = []
+    for i, (label, row) in enumerate(table.iterrows()):
+        cells = []
+        for j, (n, p) in enumerate(cols):
+            mean, std = row[(n, p, "mean")], row[(n, p, "std")]
+            cells.append("n/a" if pd.isna(mean) else
+                         cell(f"{100 * mean:.2f}", None if pd.isna(std) else f"{100 * std:.2f}", marks.iloc[i, j]))
+        out.append(_shown(_as_tuple(label)) + cells + [str(int(row[(c, "", "")])) for c in ("n_seeds", "n_failed")])
+    return out
+
+
+def markdown_table(header: list[str], rows: list[list[str]], n_left: int) -> str:
+    """A GitHub markdown table, its first n_left columns left-aligned and the others right-aligned."""
+    line = lambda cells: "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"  # noqa: E731
+    rule = "|" + "|".join([" --- "] * n_left + [" ---: "] * (len(header) - n_left)) + "|"
+    return "\n".join([line(header), rule, *map(line, rows)]) + "\n"
+
+
+def to_markdown(table: pd.DataFrame, compare: str | None = None) -> str:
+    """A GitHub markdown table: one column per (noise, parameter) with "mean ± std" over seeds in percent, then
+    the counts of completed seeds and failed jobs; the best row of each column in bold and † where the gap to it
+    exceeds the seed spread; the rule and the few-seeds warning under the table."""
+    header = [str(n) for n in table.index.names] + [f"noise {n:g} {p} [%]" for n, p in cell_columns(table)] \
+        + ["seeds", "failed"]
+    notes = legend(table, compare)
+    return markdown_table(header, _rows(table, compare, _md_cell), table.index.nlevels) \
+        + ("\n" + "\n\n".join(notes) + "\n" if notes else "")
+
+
+def to_latex(table: pd.DataFrame, compare: str | None = None, caption: str | None = None) -> str:
+    """The same table as LaTeX (needs \\usepackage{booktabs}): $m \\pm s$ cells, \\mathbf for the best row of a
+    column, ^\\dagger where the gap to it exceeds the seed spread; the rule and warnings follow as text."""
+    cols = cell_columns(table)
+    nl = table.index.nlevels
+    header = [_tex(str(n)) for n in table.index.names] + [f"{n:g} {_tex(str(p))}" for n, p in cols] \
+        + ["seeds", "failed"]
+    lines = [r"\begin{tabular}{" + "l" * nl + "r" * (len(header) - nl) + "}", r"\toprule"]
+    if cols:
+        lines += [" & ".join([""] * nl) + f" & \\multicolumn{{{len(cols)}}}{{c}}{{noise std [m/s$^2$], "
+                  r"parameter [\%]} & & \\", f"\\cmidrule(lr){{{nl + 1}-{nl + len(cols)}}}"]
+    lines += [" & ".join(header) + r" \\", r"\midrule"]
+    lines += [" & ".join([_tex(v) for v in row[:nl]] + row[nl:]) + r" \\" for row in _rows(table, compare, _tex_cell)]
+    lines += [r"\bottomrule", r"\end{tabular}"]
+    body = "\n".join(lines)
+    if caption:
+        body = "\\begin{table}\n\\centering\n" + body + f"\n\\caption{{{_tex(caption)}}}\n\\end{{table}}"
+    notes = legend(table, compare, latex=True)
+    return body + "\n" + ("\n" + "\n\n".join(notes) + "\n" if notes else "")

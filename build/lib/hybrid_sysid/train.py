@@ -1,0 +1,187 @@
+"""One run: build the data and the model, fit, evaluate the best checkpoint, write the run record.
+
+``train(cfg, run_dir)`` is plain Python on a composed config (tests call it in process); the Hydra entry
+point that calls it is ``hybrid_sysid.app``.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import time
+from pathlib import Path
+
+import lightning as L
+import pandas as pd
+import torch
+from hydra.utils import instantiate
+from omegaconf import DictConfig
+
+from hybrid_sysid.baselines import is_baseline
+from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, TrainingClock
+from hybrid_sysid.config import dataset_spec, validate
+from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.model.metrics import summarise
+from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.records import RECORD, run_record, write_json_atomic
+
+log = logging.getLogger("hybrid_sysid")
+
+
+def build_datamodule(cfg: DictConfig) -> QCMDataModule:
+    d = cfg.data
+    return QCMDataModule(dataset_spec(cfg), cache_dir=d.cache_dir, window=d.window, batch_size=cfg.model.batch_size,
+                         train_fraction=d.train_fraction, val_fraction=d.val_fraction,
+                         eval_std=list(cfg.noise.eval_std), train_std=cfg.noise.train_std, seed=cfg.seed)
+
+
+def build_model(cfg: DictConfig) -> ParameterEstimator:
+    """The network and the objective of the config (their prior of p comes from the car and the mass range:
+    ``${p_prior:...}``, hybrid_sysid.config) in a ParameterEstimator."""
+    net = instantiate(cfg.model.net, _convert_="all")
+    objective = instantiate(cfg.objective, _convert_="all")
+    o = cfg.model.optim
+    return ParameterEstimator(net, objective, optimizer=o.name, lr=o.lr, weight_decay=o.weight_decay,
+                              schedule=o.schedule, max_steps=cfg.trainer.max_steps,
+                              warmup_fraction=o.warmup_fraction)
+
+
+def build_trainer(cfg: DictConfig, run_dir, callbacks=(), **overrides) -> L.Trainer:
+    """The run's lightning.Trainer (benchmarks/training_throughput.py times this same one)."""
+    t = cfg.trainer
+    callbacks = list(callbacks)
+    if t.progress_bar:
+        # Lightning redraws the bar every step by default; every 10th step reads as well and costs less
+        callbacks.append(L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10))
+    kwargs = dict(
+        max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
+        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=False,
+        callbacks=callbacks, enable_progress_bar=t.progress_bar, enable_model_summary=False,
+        num_sanity_val_steps=0, default_root_dir=str(run_dir), **t.get("extra", {}))
+    kwargs.update(overrides)
+    return L.Trainer(**kwargs)
+
+
+def monitor_of(cfg: DictConfig, objective) -> str:
+    """'auto' selects by the training objective on validation windows when it reads no labels (hybrid), so a
+    label-free run stays label-free; by the labelled relative deviation otherwise."""
+    m = cfg.trainer.monitor
+    if m == "auto":
+        return "val/rel_dev" if getattr(objective, "uses_labels", True) else "val/loss"
+    return m
+
+
+def evaluate(model, dm: QCMDataModule, noise_levels, windows=(1,)) -> tuple[list[dict], pd.DataFrame]:
+    """Relative deviations per split, noise level and K (test predictions averaged over K windows per
+    recording; train and val on one window), plus one prediction row per recording and evaluation.
+
+    ``model`` is anything with ``predict_split(dm, split, noise_std, limit, windows)``: a ParameterEstimator
+    or a baseline (hybrid_sysid.baselines)."""
+    results, frames = [], []
+    evals = [("train", 0.0, 1), ("val", 0.0, 1)] + [("test", float(s), int(k)) for s in noise_levels for k in windows]
+    for split, std, k in evals:
+        pred, true = model.predict_split(dm, split, std, windows=k)
+        results += summarise(pred, true, split=split, noise_std=std, windows=k)
+        rows = dm.rows(split)
+        frames.append(pd.DataFrame({
+            "split": split, "noise_std": std, "windows": k, "recording": rows,
+            "road_class": dm.dataset.road_class[rows], "m3": dm.dataset.m3[rows], "p1_true": true[:, 0],
+            "p1_pred": pred[:, 0], "p2_true": true[:, 1], "p2_pred": pred[:, 1]}))
+    return results, pd.concat(frames, ignore_index=True)
+
+
+def write_outputs(run_dir: Path, predictions: pd.DataFrame, curves: pd.DataFrame) -> None:
+    """predictions.csv and curves.csv; the run's figures are drawn from them by the report layer."""
+    curves.to_csv(run_dir / "curves.csv", index=False)
+    predictions.to_csv(run_dir / "predictions.csv", index=False)
+
+
+def console_table(results: list[dict]) -> str:
+    df = pd.DataFrame(results)
+    df = df[df.split != "val"]
+    index = ["split", "noise_std"] + (["windows"] if df.get("windows", pd.Series([1])).ne(1).any() else [])
+    table = df.pivot_table(index=index, columns="parameter", values="mean_rel_dev")
+    return (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
+
+
+def previous_record(run_dir: Path, overrides) -> dict | None:
+    """The record of a run that already completed in this directory (a re-run sweep skips it), else None."""
+    path = run_dir / RECORD
+    if not path.exists():
+        return None
+    record = json.loads(path.read_text())
+    if record.get("status") != "completed":
+        return None
+    wanted = [o for o in overrides if not o.startswith("resume=")]
+    had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
+    if sorted(had) != sorted(wanted):
+        raise ValueError(f"run directory {run_dir} holds a completed run of other overrides ({' '.join(had)}); "
+                         "choose another hydra.run.dir / hydra.sweep.dir")
+    return record
+
+
+def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
+    """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/."""
+    validate(cfg)  # every range check before any work
+    run_dir = Path(run_dir)
+    done = previous_record(run_dir, overrides)
+    if done is not None:
+        log.info("run %s already completed; not training it again", run_dir)
+        return done
+    run_dir.mkdir(parents=True, exist_ok=True)
+    t = cfg.trainer
+    if t.get("threads"):
+        torch.set_num_threads(int(t.threads))
+    L.seed_everything(cfg.seed, workers=True)  # 0 included
+
+    dm = build_datamodule(cfg)
+    noise_levels = [float(s) for s in cfg.noise.eval_std]
+    windows = [int(k) for k in cfg.evaluation.windows]
+    if is_baseline(cfg.model.net._target_):
+        return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows)
+    model = build_model(cfg)
+    monitor = monitor_of(cfg, model.objective)
+
+    ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
+                                               mode="min", save_last=True, auto_insert_metric_name=False)
+    clock = TrainingClock()
+    curves = LearningCurves(clock, noise_levels)
+    trainer = build_trainer(cfg, run_dir, [clock, curves, ckpt])
+    dm.setup("fit")
+    last = run_dir / "checkpoints" / "last.ckpt"
+    if last.exists():
+        log.info("resuming from %s", last)
+    start = time.perf_counter()
+    trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last.exists() else None)
+    fit_seconds = time.perf_counter() - start
+    train_seconds = clock.seconds  # evaluations excluded, the time before a resume included
+
+    if ckpt.best_model_path:
+        state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
+        model.load_state_dict(state)
+    results, predictions = evaluate(model, dm, noise_levels, windows)
+    write_outputs(run_dir, predictions, pd.DataFrame(curves.rows, columns=CURVE_COLUMNS))
+
+    record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
+                        results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
+                        fit_seconds=round(fit_seconds, 2))
+    write_json_atomic(run_dir / RECORD, record)
+    log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
+    return record
+
+
+def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, noise_levels, windows) -> dict:
+    """A baseline without a network (``trainable = False``, e.g. least squares): no Lightning, no training.
+    Its record has the same form as a network run's, with steps 0 and train_seconds = the time of its fits
+    (all done while evaluating); curves.csv has the header only (no learning curve)."""
+    estimator = instantiate(cfg.model.net, _convert_="all")
+    dm.setup()
+    results, predictions = evaluate(estimator, dm, noise_levels, windows)
+    write_outputs(run_dir, predictions, pd.DataFrame(columns=CURVE_COLUMNS))
+    record = run_record("completed", overrides, cfg.seed, steps=0, train_seconds=estimator.fit_seconds,
+                        results=results, monitor=None, best_checkpoint=None,
+                        fit_seconds=round(estimator.fit_seconds, 2))
+    write_json_atomic(run_dir / RECORD, record)
+    log.info("run %s: baseline %s, fits in %.2f s\n%s", run_dir, cfg.model.net._target_, estimator.fit_seconds,
+             console_table(results))
+    return record
