@@ -16,6 +16,8 @@ BAD = [
     (["data.dt=0"], r"data.dt = 0.0 is not allowed: must be > 0"),
     (["data.dt=0.05"], r"data.dt = 0.05 is not allowed: the semi-implicit Euler scheme is unstable above 0.036"),
     (["data.speed=-2"], r"data.speed = -2.0 is not allowed: must be > 0"),
+    (["trainer.curve_every_n_steps=250"], r"trainer.curve_every_n_steps = 250 is not allowed: a multiple of "
+                                          r"trainer.eval_every_n_steps = 200"),
     (["data.n_roads=2"], r"data.n_roads = 2 is too few for data.train_fraction = 0.8"),
     (["data.train_fraction=1.0"], r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
     (["data.train_fraction=0"], r"data.train_fraction = 0.0 is not allowed: must lie in \(0, 1\)"),

@@ -120,3 +120,9 @@ def test_the_prior_follows_the_car_and_the_mass_range(make_cfg, overrides, c3, k
     paper = build_model(make_cfg(*overrides, "model=paper_cnn", "objective=combined"))
     torch.testing.assert_close(paper.net.p_scale, scale)
     torch.testing.assert_close(paper.objective.labelled.p_scale, scale)
+
+
+def test_curve_points_every_n_steps_and_at_the_end(make_cfg, tmp_path):
+    train(make_cfg(*TINY, "trainer.max_steps=50", "trainer.curve_every_n_steps=20"), tmp_path / "c")
+    curves = pd.read_csv(tmp_path / "c" / "curves.csv")
+    assert sorted(curves.step.unique()) == [20, 40, 50]  # validations at 10, 20, ..., 50; the last one too

@@ -19,8 +19,6 @@ from omegaconf import DictConfig
 from hybrid_sysid import config
 from hybrid_sysid.config import ConfigError
 from hybrid_sysid.records import RECORD, run_record, write_json_atomic
-from hybrid_sysid.report.run_figures import write_run_figures
-from hybrid_sysid.train import train
 
 log = logging.getLogger("hybrid_sysid")
 _task_started = False
@@ -35,6 +33,10 @@ def hydra_main(cfg: DictConfig) -> dict:
     overrides = list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
     try:
+        # imported here: a sweep's parent process composes and launches jobs, and need not load torch for it
+        from hybrid_sysid.report.run_figures import write_run_figures
+        from hybrid_sysid.train import train
+
         record = train(cfg, run_dir, overrides)
         write_run_figures(run_dir)
         return record

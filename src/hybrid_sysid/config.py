@@ -75,6 +75,7 @@ class ModelConfig:
 class TrainerConfig:
     max_steps: int = 6000
     eval_every_n_steps: int = 200
+    curve_every_n_steps: Optional[int] = None  # learning-curve points; null: at every validation
     accelerator: str = "cpu"
     devices: Any = 1
     threads: Optional[int] = None
@@ -181,6 +182,10 @@ def validate(cfg: DictConfig) -> None:
         _bad("trainer.max_steps", t.max_steps, "must be >= 1")
     if t.eval_every_n_steps < 1:
         _bad("trainer.eval_every_n_steps", t.eval_every_n_steps, "must be >= 1")
+    curve_every = t.get("curve_every_n_steps")
+    if curve_every is not None and not (curve_every >= 1 and curve_every % t.eval_every_n_steps == 0):
+        _bad("trainer.curve_every_n_steps", curve_every, f"a multiple of trainer.eval_every_n_steps = "
+             f"{t.eval_every_n_steps} (curve points are taken at validations), or null for every validation")
     if t.threads is not None and t.threads < 1:
         _bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
     if t.monitor not in ("auto", "val/loss", "val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev"):

@@ -145,7 +145,7 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
                                                mode="min", save_last=True, auto_insert_metric_name=False)
     clock = TrainingClock()
-    curves = LearningCurves(clock, noise_levels)
+    curves = LearningCurves(clock, noise_levels, every_n_steps=cfg.trainer.get("curve_every_n_steps"))
     trainer = build_trainer(cfg, run_dir, [clock, curves, ckpt])
     dm.setup("fit")
     last = run_dir / "checkpoints" / "last.ckpt"
