@@ -19,14 +19,14 @@ from filelock import FileLock
 
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.physics import fused
-from hybrid_sysid.physics import ROAD_CLASSES, QuarterCar, relative_states, road_profiles, simulate, stable_dt_limit
+from hybrid_sysid.physics import (DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, QuarterCar, relative_states,
+                                  road_profiles, simulate, stable_dt_limit)
 
 log = logging.getLogger(__name__)
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 2  # 2: relative states integrated from seat - body (fewer cancelled digits)
 CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
-MEASUREMENTS = ("paper", "consistent")
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ class DatasetSpec:
     road_classes: tuple = tuple(ROAD_CLASSES)
     m3_min: int = 50
     m3_max: int = 200
-    measurement: str = "consistent"
+    measurement: str = DEFAULT_MEASUREMENT
     seed: int = 0
     car: QuarterCar = field(default_factory=QuarterCar)
 

@@ -2,11 +2,22 @@
 
 from hybrid_sysid.physics import fused
 from hybrid_sysid.physics.integrate import integrate, relative_states
-from hybrid_sysid.physics.quarter_car import QuarterCar, simulate, stable_dt_limit
+from hybrid_sysid.physics.quarter_car import (
+    DEFAULT_MEASUREMENT,
+    MEASUREMENTS,
+    Coefficients,
+    QuarterCar,
+    simulate,
+    stable_dt_limit,
+    step,
+)
 from hybrid_sysid.physics.road import ROAD_CLASSES, road_profiles, wave_amplitudes, wave_numbers
 
 __all__ = [
+    "DEFAULT_MEASUREMENT",
+    "MEASUREMENTS",
     "ROAD_CLASSES",
+    "Coefficients",
     "QuarterCar",
     "fused",
     "integrate",
@@ -14,6 +25,7 @@ __all__ = [
     "road_profiles",
     "simulate",
     "stable_dt_limit",
+    "step",
     "wave_amplitudes",
     "wave_numbers",
 ]
