@@ -1,6 +1,8 @@
-"""The quarter-car physics in plain numpy (no torch, Lightning or Hydra), usable from a notebook."""
+"""The quarter-car physics in plain numpy (no numba, torch, Lightning or Hydra), usable from a notebook.
 
-from hybrid_sysid.physics import fused
+The compiled dataset kernel is ``hybrid_sysid.physics.compiled``, imported only by ``hybrid_sysid.data``.
+"""
+
 from hybrid_sysid.physics.integrate import integrate, relative_states
 from hybrid_sysid.physics.quarter_car import (
     DEFAULT_MEASUREMENT,
@@ -19,7 +21,6 @@ __all__ = [
     "ROAD_CLASSES",
     "Coefficients",
     "QuarterCar",
-    "fused",
     "integrate",
     "relative_states",
     "road_profiles",
