@@ -6,8 +6,9 @@
 Reference, timed in the same run: a straightforward vectorised numpy implementation (roads by a dense
 sin evaluation over (roads, waves, steps); the eq.-11 loop over time vectorised over all recordings; then
 re-integration by np.cumsum). The project's path: roads from one shared sine basis and two matrix products,
-then the compiled fused kernel (physics.fused). Both are compared for equality in float64 (1e-12 relative).
-Peak memory is measured in a fresh subprocess running the project's generate_dataset alone.
+then the compiled kernel (physics.compiled). Both are compared for equality in float64 (1e-12 relative).
+Peak memory, and the time numba takes to compile the kernel, are measured in a fresh subprocess running the
+project's generate_dataset alone.
 The fast path is timed first in this process (cold: the first ~1 GB this process asks of the OS) and then
 --repeats more times (warm: the OS hands back memory this process freed); the reference once. How much of the
 cold figure is the OS is measured apart, in another fresh process: four empty float32 arrays of the dataset's
@@ -24,7 +25,8 @@ from pathlib import Path
 import numpy as np
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.physics import QuarterCar, fused, relative_states, road_profiles, simulate, wave_amplitudes, wave_numbers
+from hybrid_sysid.physics import QuarterCar, relative_states, road_profiles, simulate, wave_amplitudes, wave_numbers
+from hybrid_sysid.physics.compiled import simulate_recordings
 
 
 def reference_roads(classes, n_steps, dt, speed, phases):
@@ -55,8 +57,8 @@ def fast(spec, classes, masses, rng_seed, dtype=np.float32):
     t_roads = time.perf_counter() - t0
     n = spec.n_roads * spec.n_masses
     out = tuple(np.empty((n, spec.n_steps), dtype=dtype) for _ in range(4))
-    fused.simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(),
-                              spec.dt, QuarterCar(), spec.measurement, out=out)
+    simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(),
+                        spec.dt, QuarterCar(), spec.measurement, out=out)
     return out, t_roads, time.perf_counter() - t0
 
 
@@ -88,8 +90,8 @@ def rel_diff(a, b) -> float:
 
 def kernel64(spec, roads, masses):
     out = tuple(np.empty((spec.n_roads * spec.n_masses, spec.n_steps)) for _ in range(4))
-    fused.simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(), spec.dt,
-                              QuarterCar(), spec.measurement, out=out)
+    simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(), spec.dt,
+                        QuarterCar(), spec.measurement, out=out)
     return out
 
 
@@ -151,7 +153,7 @@ def main():
         import resource
         from hybrid_sysid.data import generate_dataset
         t0 = time.perf_counter()
-        fused.simulate_recordings(np.zeros((1, 8)), [0], [60.0], spec.dt)  # load the kernel from numba's cache
+        simulate_recordings(np.zeros((1, 8)), [0], [60.0], spec.dt)  # compile the kernel
         t1 = time.perf_counter()
         ds = generate_dataset(spec)
         t2 = time.perf_counter()
@@ -217,8 +219,8 @@ def main():
     for n, a, b, c in zip(names, worst, same_road, floor):
         print(f"| {n} | {a:.1e} | {b:.1e} | {c:.1e} |")
     print(f"roads, dense sin vs sine basis: {road_diff:.1e}")
-    print(f"generate_dataset in a fresh process: {float(peak[0]):.3f} s, of which {float(peak[3]):.3f} s loading "
-          f"the kernel from numba's cache; dataset {float(peak[1]):.3f} GiB, peak RSS {float(peak[2]):.3f} GiB")
+    print(f"generate_dataset in a fresh process: {float(peak[0]):.3f} s, of which {float(peak[3]):.3f} s compiling "
+          f"the kernel; dataset {float(peak[1]):.3f} GiB, peak RSS {float(peak[2]):.3f} GiB")
     if args.scaling:
         png = Path(__file__).parent / "dataset_generation_scaling.png"
         scaling(png)

@@ -2,8 +2,9 @@
 
     python benchmarks/least_squares_bias.py
 
-For each recording scheme (DESIGN.md's pitfall), road class and time step: the worst relative error of
-p1 and p2 over masses {50, 100, 150, 200} kg on two roads of 6 s. Reference: numpy's lstsq in float64.
+For each recording scheme (docs/design.md, "The hybrid objective and the discretisation"), road class and time
+step: the worst relative error of p1 and p2 over masses {50, 100, 150, 200} kg on two roads of 6 s.
+Reference: numpy's lstsq in float64.
 """
 
 import numpy as np

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from hybrid_sysid.physics import QuarterCar, simulate, stable_dt_limit
+from hybrid_sysid.physics import QuarterCar, simulate, stable_dt_limit, step
 
 CAR = QuarterCar()
 
@@ -26,6 +26,37 @@ def test_system_matrix_is_eq7_to_9():
         np.testing.assert_allclose(CAR.system_matrix(m3) @ state + f, eq7_to_9(state, m3, r=0.3), rtol=1e-12)
 
 
+def eq11(u, v, w, x, y, z, r, m3, h, c=CAR):
+    """The paper's eq. 11 as printed: u, then v with u_{k+1}, then w with v_{k+1}, then the positions."""
+    u1 = u + h * (c.c2 / c.m1 * v - c.c2 / c.m1 * u + c.k2 / c.m1 * y - (c.k1 + c.k2) / c.m1 * x + c.k1 / c.m1 * r)
+    v1 = v + h * (c.c3 / c.m2 * w - (c.c2 + c.c3) / c.m2 * v + c.c2 / c.m2 * u1 + c.k3 / c.m2 * z
+                  - (c.k2 + c.k3) / c.m2 * y + c.k2 / c.m2 * x)
+    w1 = w + h * (-c.c3 / m3 * w + c.c3 / m3 * v1 - c.k3 / m3 * z + c.k3 / m3 * y)
+    return u1, v1, w1, x + h * u1, y + h * v1, z + h * w1
+
+
+OTHER_CAR = QuarterCar(m1=120.0, m2=1800.0, k1=50000.0, k2=1.2e5, k3=8e4, c2=4000.0, c3=700.0)
+
+
+@pytest.mark.parametrize("car", [CAR, OTHER_CAR])
+def test_step_is_eq11_and_records_what_it_applied_or_eq12(car):
+    rng = np.random.default_rng(1)
+    state = rng.standard_normal((6, 5))  # u, v, w, x, y, z of five recordings
+    r, m3, h = rng.standard_normal(5), rng.uniform(50.0, 200.0, 5), 3e-3
+    p1, p2 = car.parameters(m3)
+    *new, seat, body = step(*state, r, p1, p2, h, car.coefficients(), True)
+    want = eq11(*state, r, m3, h, car)
+    np.testing.assert_allclose(new, want, rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(seat, (want[2] - state[2]) / h, rtol=1e-9)
+    np.testing.assert_allclose(body, (want[1] - state[1]) / h, rtol=1e-9)
+    *same, seat12, body12 = step(*state, r, p1, p2, h, car.coefficients(), False)
+    np.testing.assert_array_equal(same, new)
+    u, v, w, x, y, z = state
+    acc = eq7_to_9(np.stack([w, v, u, z, y, x]), m3, c=car)  # eq. 12 is eq. 7-8 at the states of step k
+    np.testing.assert_allclose(seat12, acc[0], rtol=1e-12, atol=1e-12)
+    np.testing.assert_allclose(body12, acc[1], rtol=1e-12, atol=1e-12)
+
+
 def test_parameter_ranges():
     p1, p2 = CAR.parameters(np.array([200.0, 50.0]))
     np.testing.assert_allclose(p1, [615 / 200, 615 / 50])
@@ -37,8 +68,10 @@ def smooth_road(t):
 
 
 def reference(m3, t_end):
-    sol = solve_ivp(lambda t, s: CAR.system_matrix(m3) @ s + np.array([0, 0, CAR.k1 / CAR.m1 * smooth_road(t), 0, 0, 0]),
-                    (0, t_end), np.zeros(6), method="DOP853", rtol=1e-11, atol=1e-13, dense_output=True)
+    def rhs(t, s):
+        return CAR.system_matrix(m3) @ s + np.array([0, 0, CAR.k1 / CAR.m1 * smooth_road(t), 0, 0, 0])
+
+    sol = solve_ivp(rhs, (0, t_end), np.zeros(6), method="DOP853", rtol=1e-11, atol=1e-13, dense_output=True)
     return sol.sol
 
 
@@ -50,7 +83,8 @@ def test_converges_to_solve_ivp_at_first_order(m3):
     for dt in (4e-3, 2e-3, 1e-3, 5e-4):
         n = int(round(t_end / dt))
         t = dt * np.arange(n)
-        seat, body, states = simulate(smooth_road(t)[None], np.array([m3]), dt, return_states=True)
+        seat, body, states = simulate(smooth_road(t)[None], np.array([m3]), dt, measurement="paper",
+                                      return_states=True)
         exact = ref(t)  # rows: z', y', x', z, y, x
         err = max(np.abs(states["z"][0] - exact[3]).max() / np.abs(exact[3]).max(),
                   np.abs(states["y"][0] - exact[4]).max() / np.abs(exact[4]).max(),

@@ -18,15 +18,15 @@ import numpy as np
 from filelock import FileLock
 
 from hybrid_sysid.files import write_atomic
-from hybrid_sysid.physics import fused
-from hybrid_sysid.physics import ROAD_CLASSES, QuarterCar, relative_states, road_profiles, simulate, stable_dt_limit
+from hybrid_sysid.physics import (DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, QuarterCar, road_profiles,
+                                  stable_dt_limit)
+from hybrid_sysid.physics.compiled import simulate_recordings
 
 log = logging.getLogger(__name__)
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 2  # 2: relative states integrated from seat - body (fewer cancelled digits)
 CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
-MEASUREMENTS = ("paper", "consistent")
 
 
 @dataclass(frozen=True)
@@ -43,7 +43,7 @@ class DatasetSpec:
     road_classes: tuple = tuple(ROAD_CLASSES)
     m3_min: int = 50
     m3_max: int = 200
-    measurement: str = "consistent"
+    measurement: str = DEFAULT_MEASUREMENT
     seed: int = 0
     car: QuarterCar = field(default_factory=QuarterCar)
 
@@ -110,11 +110,11 @@ class QCMDataset:
         return sum(getattr(self, n).nbytes for n in CHANNELS + ("params", "m3", "road_id", "road_class"))
 
 
-def generate_dataset(spec: DatasetSpec, chunk_bytes: int = 64 << 20) -> QCMDataset:
+def generate_dataset(spec: DatasetSpec) -> QCMDataset:
     """Simulate every mass on every road.
 
-    The compiled fused kernel (physics.fused) writes the float32 channels directly; without numba, the numpy
-    path runs in chunks of roads to bound its float64 working memory. Both give the same numbers.
+    The compiled kernel (physics.compiled) steps the simulation in float64 and writes the float32 channels
+    directly: the same numbers as ``simulate`` and ``relative_states`` cast to float32.
     """
     spec.validate()
     rng = np.random.default_rng(spec.seed)
@@ -122,31 +122,17 @@ def generate_dataset(spec: DatasetSpec, chunk_bytes: int = 64 << 20) -> QCMDatas
     masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float)
     roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, spec.amplitude, rng)
 
-    n = spec.n_roads * spec.n_masses
-    out = {c: np.empty((n, spec.n_steps), dtype=np.float32) for c in CHANNELS}
-    if fused.available():
-        road_of = np.repeat(np.arange(spec.n_roads), spec.n_masses)
-        fused.simulate_recordings(roads, road_of, masses.ravel(), spec.dt, spec.car, spec.measurement,
-                                  out=tuple(out[c] for c in CHANNELS))
-    else:
-        per_road = spec.n_masses * spec.n_steps * 8 * 6  # float64 working arrays per road
-        step = max(1, chunk_bytes // per_road)
-        for r0 in range(0, spec.n_roads, step):
-            r1 = min(spec.n_roads, r0 + step)
-            seat, body = simulate(roads[r0:r1, None, :], masses[r0:r1], spec.dt, spec.car, spec.measurement)
-            rel_vel, rel_disp = relative_states(seat, body, spec.dt, spec.measurement)
-            rows = slice(r0 * spec.n_masses, r1 * spec.n_masses)
-            # float64 physics ends here: the network and the objectives work in float32
-            for name, arr in zip(CHANNELS, (seat, body, rel_vel, rel_disp)):
-                out[name][rows] = arr.reshape(-1, spec.n_steps)
+    road_id = np.repeat(np.arange(spec.n_roads), spec.n_masses)
+    # float64 physics ends here: the network and the objectives work in float32
+    channels = simulate_recordings(roads, road_id, masses.ravel(), spec.dt, spec.car, spec.measurement)
     p1, p2 = spec.car.parameters(masses.ravel())
     return QCMDataset(
         spec=spec,
         params=np.stack([p1, p2], axis=1),
         m3=masses.ravel(),
-        road_id=np.repeat(np.arange(spec.n_roads), spec.n_masses),
+        road_id=road_id,
         road_class=np.repeat(classes, spec.n_masses),
-        **out,
+        **dict(zip(CHANNELS, channels)),
     )
 
 

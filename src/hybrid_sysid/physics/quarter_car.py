@@ -1,12 +1,39 @@
-"""The quarter-car model (eq. 7-10) and its semi-implicit Euler simulation (eq. 11-12)."""
+"""The quarter-car model (eq. 7-10) and its semi-implicit Euler step (eq. 11) with the recorded accelerations."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
+# What a recording holds as the two sensors' accelerations: "paper" is eq. 12 from the states at step k,
+# "consistent" what the integrator applied. Re-integrating "paper" recordings does not give the simulated states
+# back, which biases the hybrid objective (docs/design.md, "The hybrid objective and the discretisation").
 MEASUREMENTS = ("paper", "consistent")
+DEFAULT_MEASUREMENT = "consistent"
+
+
+def check_measurement(measurement: str) -> None:
+    if measurement not in MEASUREMENTS:
+        raise ValueError(f"measurement = {measurement!r} is unknown; allowed: {', '.join(MEASUREMENTS)}")
+
+
+class Coefficients(NamedTuple):
+    """The car's entries of A (eq. 10) in the wheel and body rows, named by row and column:
+    x'' = uu u + uv v + uy y + ux x + ur r and y'' = vw w + vv v + vu u + vz z + vy y + vx x."""
+
+    uu: float  # -C2 / m1
+    uv: float  # C2 / m1
+    uy: float  # K2 / m1
+    ux: float  # -(K1 + K2) / m1
+    ur: float  # K1 / m1, the road's
+    vw: float  # C3 / m2
+    vv: float  # -(C2 + C3) / m2
+    vu: float  # C2 / m2
+    vz: float  # K3 / m2
+    vy: float  # -(K2 + K3) / m2
+    vx: float  # K2 / m2
 
 
 @dataclass(frozen=True)
@@ -28,15 +55,23 @@ class QuarterCar:
             raise ValueError(f"m3 must be > 0 kg, got min {m3.min()}")
         return self.c3 / m3, self.k3 / m3
 
+    def coefficients(self) -> Coefficients:
+        m1, m2 = self.m1, self.m2
+        return Coefficients(
+            uu=-self.c2 / m1, uv=self.c2 / m1, uy=self.k2 / m1, ux=-(self.k1 + self.k2) / m1, ur=self.k1 / m1,
+            vw=self.c3 / m2, vv=-(self.c2 + self.c3) / m2, vu=self.c2 / m2, vz=self.k3 / m2,
+            vy=-(self.k2 + self.k3) / m2, vx=self.k2 / m2,
+        )
+
     def system_matrix(self, m3: float) -> np.ndarray:
         """A of eq. 10 for the state (z', y', x', z, y, x); the road enters as f = (0, 0, K1 r / m1, 0, 0, 0)."""
-        m1, m2 = self.m1, self.m2
-        c2, c3, k1, k2, k3 = self.c2, self.c3, self.k1, self.k2, self.k3
+        c = self.coefficients()
+        p1, p2 = self.parameters(m3)
         return np.array(
             [
-                [-c3 / m3, c3 / m3, 0.0, -k3 / m3, k3 / m3, 0.0],
-                [c3 / m2, -(c2 + c3) / m2, c2 / m2, k3 / m2, -(k2 + k3) / m2, k2 / m2],
-                [0.0, c2 / m1, -c2 / m1, 0.0, k2 / m1, -(k1 + k2) / m1],
+                [-p1, p1, 0.0, -p2, p2, 0.0],
+                [c.vw, c.vv, c.vu, c.vz, c.vy, c.vx],
+                [0.0, c.uv, c.uu, 0.0, c.uy, c.ux],
                 [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
                 [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
                 [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
@@ -44,17 +79,35 @@ class QuarterCar:
         )
 
 
+def step(u, v, w, x, y, z, r, p1, p2, dt, c: Coefficients, consistent: bool):
+    """One step of eq. 11 from step k to k + 1, and the two accelerations recorded for step k.
+
+    Velocities u, v, w (wheel, body, seat) are updated in that order, each with the newest values, then the
+    positions x, y, z; r is the road at step k. Works on scalars and on numpy arrays alike (arithmetic only),
+    and is compiled as it stands for the dataset kernel (physics.compiled).
+    Recorded (seat z'', body y''): with ``consistent`` the accelerations the step applied,
+    (w_{k+1} - w_k) / dt and (v_{k+1} - v_k) / dt; otherwise eq. 12 from the states at step k.
+    Returns (u, v, w, x, y, z) at step k + 1, then seat and body.
+    """
+    acc_u = c.uu * u + c.uv * v + c.uy * y + c.ux * x + c.ur * r
+    u1 = u + dt * acc_u
+    acc_v = c.vw * w + c.vv * v + c.vu * u1 + c.vz * z + c.vy * y + c.vx * x
+    v1 = v + dt * acc_v
+    acc_w = -p1 * (w - v1) - p2 * (z - y)
+    w1 = w + dt * acc_w
+    if consistent:
+        seat, body = acc_w, acc_v
+    else:
+        seat = -p1 * (w - v) - p2 * (z - y)
+        body = c.vw * (w - v) + c.vu * (u - v) + c.vz * (z - y) + c.vx * (x - y)
+    return u1, v1, w1, x + dt * u1, y + dt * v1, z + dt * w1, seat, body
+
+
 def _step_matrix(car: QuarterCar, m3: float, dt: float) -> np.ndarray:
-    """The linear map of one eq.-11 step on (w, v, u, z, y, x) with the road set to zero."""
-    cols = []
-    for e in np.eye(6):
-        w, v, u, z, y, x = e
-        u1 = u + dt * (car.c2 / car.m1 * (v - u) + car.k2 / car.m1 * y - (car.k1 + car.k2) / car.m1 * x)
-        v1 = v + dt * (car.c3 / car.m2 * w - (car.c2 + car.c3) / car.m2 * v + car.c2 / car.m2 * u1
-                       + car.k3 / car.m2 * z - (car.k2 + car.k3) / car.m2 * y + car.k2 / car.m2 * x)
-        w1 = w + dt * (-car.c3 / m3 * (w - v1) - car.k3 / m3 * (z - y))
-        cols.append([w1, v1, u1, z + dt * w1, y + dt * v1, x + dt * u1])
-    return np.array(cols).T
+    """The linear map of one eq.-11 step on (u, v, w, x, y, z) with the road at 0: column j is the image of e_j."""
+    p1, p2 = car.parameters(m3)
+    basis = np.eye(6)  # row i holds component i of every basis vector
+    return np.array(step(*basis, 0.0, p1, p2, dt, car.coefficients(), True)[:6])
 
 
 def stable_dt_limit(car: QuarterCar = QuarterCar(), m3_min: float = 50.0, m3_max: float = 200.0) -> float:
@@ -79,7 +132,7 @@ def simulate(
     m3,
     dt: float,
     car: QuarterCar = QuarterCar(),
-    measurement: str = "paper",
+    measurement: str = DEFAULT_MEASUREMENT,
     return_states: bool = False,
 ):
     """Simulate eq. 11 from a zero state and return the sensor channels (seat z'', body y'').
@@ -90,13 +143,13 @@ def simulate(
 
     measurement "paper" records eq. 12 from the states at step k. "consistent" records the accelerations
     the integrator applied, (w_{k+1} - w_k) / dt and (v_{k+1} - v_k) / dt, so that re-integrating them
-    reproduces the simulated velocities and states exactly (see DESIGN.md on the hybrid objective's bias).
+    reproduces the simulated velocities and states exactly (docs/design.md, "The hybrid objective and the
+    discretisation").
 
     return_states=True adds a third item: a dict of the states at steps 0..n_steps-1, keys "u", "v", "w"
     (wheel, body, seat velocity) and "x", "y", "z" (positions), for checks against other solvers.
     """
-    if measurement not in MEASUREMENTS:
-        raise ValueError(f"measurement = {measurement!r} is unknown; allowed: {', '.join(MEASUREMENTS)}")
+    check_measurement(measurement)
     if not dt > 0:
         raise ValueError(f"dt = {dt} must be > 0")
     road = np.asarray(road, dtype=float)
@@ -105,39 +158,19 @@ def simulate(
     n_steps = road.shape[-1]
     p1 = np.broadcast_to(p1, batch)
     p2 = np.broadcast_to(p2, batch)
-
-    a_uu, a_uv, a_uy, a_ux, a_ur = (-car.c2 / car.m1, car.c2 / car.m1, car.k2 / car.m1,
-                                    -(car.k1 + car.k2) / car.m1, car.k1 / car.m1)
-    b_vw, b_vv, b_vu = car.c3 / car.m2, -(car.c2 + car.c3) / car.m2, car.c2 / car.m2
-    b_vz, b_vy, b_vx = car.k3 / car.m2, -(car.k2 + car.k3) / car.m2, car.k2 / car.m2
+    coef = car.coefficients()
+    consistent = measurement == "consistent"
 
     u, v, w, x, y, z = (np.zeros(batch) for _ in range(6))
     # time-major buffers: each step writes one contiguous row
     seat = np.empty((n_steps,) + batch)
     body = np.empty((n_steps,) + batch)
-    consistent = measurement == "consistent"
-    states = {key: np.empty((n_steps,) + batch) for key in "uvwxyz"} if return_states else None
+    states = np.empty((6, n_steps) + batch) if return_states else None
     for k in range(n_steps):
         if states is not None:
-            for key, val in zip("uvwxyz", (u, v, w, x, y, z)):
-                states[key][k] = val
-        r_k = road[..., k]
-        if not consistent:  # eq. 12-13 from the states at step k
-            seat[k] = -p1 * (w - v) - p2 * (z - y)
-            body[k] = (b_vw * (w - v) + car.c2 / car.m2 * (u - v) + b_vz * (z - y) + b_vx * (x - y))
-        acc_u = a_uu * u + a_uv * v + a_uy * y + a_ux * x + a_ur * r_k
-        u = u + dt * acc_u
-        acc_v = b_vw * w + b_vv * v + b_vu * u + b_vz * z + b_vy * y + b_vx * x
-        v = v + dt * acc_v
-        acc_w = -p1 * (w - v) - p2 * (z - y)
-        w = w + dt * acc_w
-        x = x + dt * u
-        y = y + dt * v
-        z = z + dt * w
-        if consistent:
-            seat[k] = acc_w
-            body[k] = acc_v
+            states[:, k] = u, v, w, x, y, z
+        u, v, w, x, y, z, seat[k], body[k] = step(u, v, w, x, y, z, road[..., k], p1, p2, dt, coef, consistent)
     seat, body = np.moveaxis(seat, 0, -1), np.moveaxis(body, 0, -1)
     if states is None:
         return seat, body
-    return seat, body, {key: np.moveaxis(val, 0, -1) for key, val in states.items()}
+    return seat, body, {key: np.moveaxis(val, 0, -1) for key, val in zip("uvwxyz", states)}
