@@ -76,6 +76,7 @@ def run_cli(tmp_path, *args):
                           cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.integration
 def test_cli_prints_one_line_and_exits_2_before_any_work(tmp_path):
     proc = run_cli(tmp_path, "data.speed=0")
     assert proc.returncode == 2
@@ -84,6 +85,7 @@ def test_cli_prints_one_line_and_exits_2_before_any_work(tmp_path):
     assert not (tmp_path / "cache").exists()  # nothing simulated
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("arg", ["data.no_such_key=1", "objective=no_such"])
 def test_cli_composition_errors_exit_2_without_traceback(tmp_path, arg):
     proc = run_cli(tmp_path, arg)

@@ -205,6 +205,7 @@ def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
 
 
 @pytest.mark.integration
+@pytest.mark.integration
 def test_importing_physics_does_not_load_torch():
     code = ("import sys, hybrid_sysid.physics; assert 'torch' not in sys.modules, 'torch loaded'; "
             "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "

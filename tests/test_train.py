@@ -80,6 +80,7 @@ def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_p
     assert (tmp_path / "k" / "figures" / "test_predictions.png").stat().st_size > 10_000
 
 
+@pytest.mark.integration
 def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):
     import os
     import subprocess

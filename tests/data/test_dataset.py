@@ -123,6 +123,7 @@ print(float(ds.seat_acc.sum()))
 """
 
 
+@pytest.mark.integration
 def test_concurrent_jobs_generate_a_dataset_once(tmp_path):
     import subprocess
     import sys

@@ -48,6 +48,7 @@ def test_kernel_rejects_unusable_output_arrays_and_measurements():
         simulate_recordings(roads, [0, 0], [60.0, 90.0], 0.005, measurement="eq12")
 
 
+@pytest.mark.integration
 def test_the_physics_package_does_not_load_the_compiler():
     code = "import sys, hybrid_sysid.physics; print(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules))"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
