@@ -24,7 +24,7 @@ C3, K3 = 615.0, 98935.0  # the paper's seat damper and spring (sec. 2.2)
 def tiny_run(tmp_path_factory):
     """A FastCNN trained for 200 steps on data=tiny, its config saved as Hydra would. About 10% mean relative
     deviation, against about 40% for a constant guess: enough to tell right input from wrong. The directory is
-    per session and train() skips a completed run, so test_predict.py reuses this one without training."""
+    per test run and train() skips a completed run, so test_predict.py reuses this one without training."""
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR

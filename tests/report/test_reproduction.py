@@ -187,7 +187,7 @@ def test_paper_experiment_asks_for_the_reproduction_within_a_cpu_budget():
     assert cfg.model.optim.name == "adam" and cfg.model.optim.lr == 1e-3 and cfg.model.batch_size == 100
     assert cfg.data.n_roads == 100 and list(cfg.noise.eval_std) == [0.0, 0.01]
     t = cfg.trainer
-    assert t.max_steps * 0.195 <= 450  # ~195 ms per paper_cnn step at batch 100 on 2 cores (DESIGN.md)
+    assert t.max_steps * 0.195 <= 450  # ~195 ms per paper_cnn step at batch 100 on 2 cores (benchmarks/README.md, "Time to the paper's labelled figures")
     assert t.max_steps // t.eval_every_n_steps <= 10 and t.max_steps % t.eval_every_n_steps == 0
 
 

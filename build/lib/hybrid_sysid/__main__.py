@@ -1,3 +1,0 @@
-from hybrid_sysid.app import main
-
-main()
