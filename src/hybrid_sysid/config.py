@@ -16,7 +16,7 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hybrid_sysid.data import DatasetSpec, split_by_road
-from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.physics import DEFAULT_MEASUREMENT, QuarterCar
 
 CONF_DIR = str(Path(__file__).resolve().parent / "conf")  # inside the package, so an installed wheel has it
 
@@ -36,7 +36,7 @@ class DataConfig:
     amplitude: str = "paper"
     m3_min: int = 50
     m3_max: int = 200
-    measurement: str = "consistent"
+    measurement: str = DEFAULT_MEASUREMENT
     window: int = 500
     train_fraction: float = 0.8
     val_fraction: float = 0.125
