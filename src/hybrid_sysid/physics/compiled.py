@@ -19,8 +19,8 @@ from hybrid_sysid.physics.quarter_car import DEFAULT_MEASUREMENT, QuarterCar, ch
 step_inline = numba.njit(inline="always")(step)
 
 # Recordings stepped side by side in one thread. One recording's step is a chain of ~20 dependent operations;
-# with a few independent chains the core works on one while the others wait (1.8x faster than one recording
-# at a time, benchmarks/README.md, "Dataset generation"). 4 is as fast as 8 or 16 there.
+# with a few independent chains the core works on one while the others wait: twice as fast as one recording
+# at a time, and 8 or 16 are no faster (benchmarks/README.md, "Dataset generation").
 LANES = 4
 
 
@@ -30,12 +30,13 @@ def kernel(roads, road_of, p1s, p2s, dt, coef, consistent, seat_out, body_out, v
     n_rec, n_steps = seat_out.shape
     for block in numba.prange((n_rec + LANES - 1) // LANES):
         first = block * LANES
-        n_lanes = min(LANES, n_rec - first)
         # rows: u, v, w, x, y, z, then the running sums of seat - body and of the relative velocity
         s = np.zeros((8, LANES))
         for k in range(n_steps):
-            for lane in range(n_lanes):
-                i = first + lane
+            # always LANES lanes (spare ones in the last block repeat its last recording): a fixed count compiles
+            # to faster code than stopping at the last recording
+            for lane in range(LANES):
+                i = min(first + lane, n_rec - 1)
                 u, v, w, x, y, z, seat, body = step_inline(s[0, lane], s[1, lane], s[2, lane], s[3, lane],
                                                            s[4, lane], s[5, lane], roads[road_of[i], k],
                                                            p1s[i], p2s[i], dt, coef, consistent)

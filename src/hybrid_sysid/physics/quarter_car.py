@@ -7,6 +7,9 @@ from typing import NamedTuple
 
 import numpy as np
 
+# What a recording holds as the two sensors' accelerations: "paper" is eq. 12 from the states at step k,
+# "consistent" what the integrator applied. Re-integrating "paper" recordings does not give the simulated states
+# back, which biases the hybrid objective (docs/design.md, "The hybrid objective and the discretisation").
 MEASUREMENTS = ("paper", "consistent")
 DEFAULT_MEASUREMENT = "consistent"
 
