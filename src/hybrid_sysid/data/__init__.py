@@ -1,4 +1,4 @@
-"""Simulated datasets, their on-disk cache and the split by road (numpy only).
+"""Simulated datasets, their on-disk cache and the split by road (numpy and the compiled kernel; no torch).
 
 The LightningDataModule that cuts recordings into windows is ``hybrid_sysid.data.datamodule.QCMDataModule``.
 """
