@@ -1,4 +1,4 @@
-"""Lightning callbacks of the training layer: the training clock and the learning curves.
+"""Lightning callbacks of the training layer: the training clock, the learning curves, the run's checkpoints.
 
 Both keep their state in the run's checkpoints (Lightning saves a callback's ``state_dict``), so a resumed run
 carries on its clock and its curve.
@@ -7,6 +7,7 @@ carries on its clock and its curve.
 from __future__ import annotations
 
 import time
+from pathlib import Path
 from typing import Sequence
 
 import lightning as L
@@ -88,3 +89,31 @@ class LearningCurves(L.Callback):
 
     def load_state_dict(self, state_dict: dict) -> None:
         self.rows = list(state_dict["rows"])
+
+
+class RunCheckpoint(L.pytorch.callbacks.ModelCheckpoint):
+    """ModelCheckpoint whose saved state names its files relative to its directory, so a run directory that was
+    moved or copied resumes with its best score and best file (Lightning drops both when the saved absolute
+    directory differs from the current one, and a worse checkpoint would then be taken as the best). Files are
+    always rewritten in place (no best-v1.ckpt / last-v1.ckpt)."""
+
+    _PATHS = ("best_model_path", "kth_best_model_path", "last_model_path")
+
+    def __init__(self, **kwargs):
+        super().__init__(enable_version_counter=False, **kwargs)
+
+    def state_dict(self) -> dict:
+        state = super().state_dict()
+        state.update({k: Path(state[k]).name if state.get(k) else "" for k in self._PATHS})
+        state["best_k_models"] = {Path(p).name: v for p, v in state.get("best_k_models", {}).items()}
+        state["dirpath"] = "."
+        return state
+
+    def load_state_dict(self, state_dict: dict) -> None:
+        here = Path(self.dirpath)
+        state = dict(state_dict)
+        # names only (absolute paths in checkpoints written before this class existed are cut to their name)
+        state.update({k: str(here / Path(state[k]).name) if state.get(k) else "" for k in self._PATHS})
+        state["best_k_models"] = {str(here / Path(p).name): v for p, v in state.get("best_k_models", {}).items()}
+        state["dirpath"] = self.dirpath
+        super().load_state_dict(state)

@@ -7,8 +7,12 @@ naming the key, the value and what is allowed.
 
 from __future__ import annotations
 
+import difflib
+import logging
 import math
-from dataclasses import asdict, dataclass, field
+import os
+import re
+from dataclasses import asdict, dataclass, field, fields
 from pathlib import Path
 from typing import Any, Dict, List, Optional
 
@@ -16,9 +20,12 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hybrid_sysid.data import DatasetSpec, split_by_road
+from hybrid_sysid.data.dataset import CHANNELS
 from hybrid_sysid.physics import DEFAULT_MEASUREMENT, QuarterCar
 
 CONF_DIR = str(Path(__file__).resolve().parent / "conf")  # inside the package, so an installed wheel has it
+SEED_MAX = 2**32 - 1  # numpy's and Lightning's seeds are 32-bit unsigned
+log = logging.getLogger("hybrid_sysid")
 
 
 class ConfigError(ValueError):
@@ -147,6 +154,11 @@ def _bad(key: str, value, allowed: str):
 def validate(cfg: DictConfig) -> None:
     """Every range check, before any work. Checks that need the physics (stability) use its own functions."""
     d, t, o = cfg.data, cfg.trainer, cfg.model.optim
+    _check_known_keys(cfg)
+    _check_finite(OmegaConf.to_container(cfg, resolve=False), "")  # typed values; derived ones are checked later
+    for key, value in (("seed", cfg.seed), ("data.seed", d.seed)):
+        if not 0 <= value <= SEED_MAX:
+            _bad(key, value, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
     for key, value in cfg.car.items():
         if key not in CAR_FIELDS:
             _bad(f"car.{key}", value, f"unknown; the car's constants are {', '.join(CAR_FIELDS)}")
@@ -202,6 +214,158 @@ def validate(cfg: DictConfig) -> None:
         if lw < 0 or hw < 0 or lw + hw == 0:
             _bad("objective.labelled_weight / objective.hybrid_weight", [lw, hw],
                  "both must be >= 0 and not both zero")
+    _validate_training(cfg)
+    check_memory(cfg)
+
+
+# the schema's sections, whose keys are fixed (model.net, objective, car and trainer.extra are free-form)
+_SECTIONS = {"": Config, "data": DataConfig, "road": RoadConfig, "noise": NoiseConfig, "model": ModelConfig,
+             "model.optim": OptimConfig, "trainer": TrainerConfig, "evaluation": EvaluationConfig}
+
+
+def _check_known_keys(cfg: DictConfig) -> None:
+    """A key the schema does not have: ``+data.n_road=3`` adds one (the ``+`` lifts the schema's own check)."""
+    for section, schema in _SECTIONS.items():
+        node = OmegaConf.select(cfg, section) if section else cfg
+        if not isinstance(node, DictConfig):
+            continue
+        known = [f.name for f in fields(schema)]
+        for key in node.keys():
+            if key not in known:
+                name = f"{section}.{key}" if section else str(key)
+                hint = difflib.get_close_matches(str(key), known, n=1)
+                _bad(name, OmegaConf.select(node, str(key), throw_on_missing=False),
+                     "unknown key" + (f" (did you mean {section + '.' if section else ''}{hint[0]}?)" if hint
+                                      else f"; {section or 'the config'} has {', '.join(known)}"))
+
+
+def _check_finite(value, key: str) -> None:
+    """inf or nan anywhere a float is accepted (noise levels, rates, time step, speed, weights...)."""
+    if isinstance(value, dict):
+        for k, v in value.items():
+            _check_finite(v, f"{key}.{k}" if key else str(k))
+    elif isinstance(value, list):
+        for v in value:
+            if isinstance(v, float) and not math.isfinite(v):
+                _bad(key, value, "every value must be finite")
+            _check_finite(v, key)
+    elif isinstance(value, float) and not math.isfinite(value):
+        _bad(key, value, "must be finite")
+
+
+def available_memory() -> int | None:
+    """Bytes of memory available to this process: the kernel's MemAvailable, capped by a cgroup (container,
+    cluster job) limit; None where neither can be read."""
+    found = []
+    try:
+        for line in Path("/proc/meminfo").read_text().splitlines():
+            if line.startswith("MemAvailable:"):
+                found.append(int(line.split()[1]) * 1024)
+    except (OSError, ValueError, IndexError):
+        try:
+            found.append(os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE"))
+        except (OSError, ValueError, AttributeError):
+            pass
+    try:
+        cg = Path("/sys/fs/cgroup")
+        limit = (cg / "memory.max").read_text().strip()
+        if limit != "max":
+            found.append(int(limit) - int((cg / "memory.current").read_text()))
+    except (OSError, ValueError):
+        pass
+    return min(found) if found else None
+
+
+def dataset_bytes(cfg: DictConfig) -> int:
+    """What a dataset needs in memory while it is simulated and stored: every channel of every recording at
+    8 bytes (float32 channels, plus the copy that checksums or loads them) and the float64 road profiles
+    (twice: the profile and the wave sum it is built from)."""
+    d = cfg.data
+    n_recordings = d.n_roads * d.n_masses
+    return n_recordings * d.n_steps * len(CHANNELS) * 8 + 2 * d.n_roads * d.n_steps * 8
+
+
+def check_memory(cfg: DictConfig) -> None:
+    need, available = dataset_bytes(cfg), available_memory()
+    if available is not None and need > available:
+        d = cfg.data
+        _bad("data.n_roads * data.n_masses * data.n_steps", f"{d.n_roads} * {d.n_masses} * {d.n_steps}",
+             f"the dataset needs about {need / 2**30:.3g} GiB, more than the {available / 2**30:.3g} GiB of "
+             "memory available")
+
+
+def _one_line(exc: BaseException) -> str:
+    """The innermost message of an exception chain (instantiate wraps the constructor's), on one line."""
+    while exc.__cause__ is not None:
+        exc = exc.__cause__
+    return " ".join(str(exc).split())
+
+
+def _validate_training(cfg: DictConfig) -> None:
+    """The optimiser, its schedule, the network (built, and run on one window) and the objective (built): their
+    own checks, before any data is simulated."""
+    o = cfg.model.optim
+    from hybrid_sysid.baselines import is_baseline
+    from hybrid_sysid.model.module import OPTIMIZERS, SCHEDULES
+
+    if is_baseline(str(cfg.model.net.get("_target_", ""))):
+        return
+    if o.name not in OPTIMIZERS:
+        _bad("model.optim.name", o.name, f"one of {', '.join(OPTIMIZERS)}")
+    if o.schedule not in SCHEDULES:
+        _bad("model.optim.schedule", o.schedule, f"one of {', '.join(SCHEDULES)}")
+    import torch
+    from hydra.utils import instantiate
+
+    for key in ("model.net", "objective"):
+        try:
+            built = instantiate(OmegaConf.select(cfg, key), _convert_="all")
+            if key == "model.net":
+                with torch.no_grad():
+                    built.eval()(torch.zeros(2, int(cfg.model.net.get("in_channels", 2)), cfg.data.window))
+        except Exception as exc:  # noqa: BLE001 - TypeError (unknown argument), ValueError (its own checks)...
+            message = _one_line(exc)
+            # the networks' and objectives' messages start with the argument's name: give it its config key
+            if not message.startswith(key):
+                message = f"{key}.{message}" if re.match(r"\w+ = ", message) else f"{key}: {message}"
+            raise ConfigError(message) from exc
+
+
+def check_resume(run_dir: Path, cfg: DictConfig) -> None:
+    """``resume=run_dir`` must name a run (Hydra's saved .hydra/config.yaml, written before any of its work) of
+    this config: every value but those that cannot change the numbers (where the run's files and the cache
+    lie, the progress bar) must be the same. Raises ConfigError naming the differing keys."""
+    saved_path = run_dir / ".hydra" / "config.yaml"
+    if not run_dir.is_dir():
+        _bad("resume", str(run_dir), "no such directory; give the directory of the run to continue")
+    if not saved_path.is_file():
+        _bad("resume", str(run_dir), "the directory holds no run (no .hydra/config.yaml)")
+    try:
+        saved = OmegaConf.to_container(OmegaConf.load(saved_path), resolve=False)
+    except Exception as exc:  # noqa: BLE001 - a damaged file cannot tell; the run's own files still resume
+        log.warning("%s is unreadable (%s); resuming without comparing the configs", saved_path, exc)
+        return
+    now, was = _flat(OmegaConf.to_container(cfg, resolve=False)), _flat(saved if isinstance(saved, dict) else {})
+    differ = [k for k in sorted(set(now) | set(was))
+              if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")]
+    if differ:
+        shown = "; ".join(f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here" for k in differ[:3])
+        _bad("resume", str(run_dir), f"it holds a run of another config ({shown}"
+             f"{'; ...' if len(differ) > 3 else ''}); resume with the run's own values")
+
+
+RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar"}
+
+
+def _flat(tree: dict, prefix: str = "") -> dict:
+    out = {}
+    for k, v in tree.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict):
+            out.update(_flat(v, key + "."))
+        else:
+            out[key] = v
+    return out
 
 
 def _validate_baseline(cfg: DictConfig) -> None:

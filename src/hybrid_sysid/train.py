@@ -18,12 +18,13 @@ from hydra.utils import instantiate
 from omegaconf import DictConfig
 
 from hybrid_sysid.baselines import is_baseline
-from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, TrainingClock
+from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
 from hybrid_sysid.config import dataset_spec, validate
+from hybrid_sysid.files import write_atomic
 from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.model.module import ParameterEstimator
-from hybrid_sysid.records import RECORD, run_record, write_json_atomic
+from hybrid_sysid.records import previous_record, run_record, write_record
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -92,8 +93,8 @@ def evaluate(model, dm: QCMDataModule, noise_levels, windows=(1,)) -> tuple[list
 
 def write_outputs(run_dir: Path, predictions: pd.DataFrame, curves: pd.DataFrame) -> None:
     """predictions.csv and curves.csv; the run's figures are drawn from them by the report layer."""
-    curves.to_csv(run_dir / "curves.csv", index=False)
-    predictions.to_csv(run_dir / "predictions.csv", index=False)
+    write_atomic(run_dir / "curves.csv", lambda p: curves.to_csv(p, index=False))
+    write_atomic(run_dir / "predictions.csv", lambda p: predictions.to_csv(p, index=False))
 
 
 def console_table(results: list[dict]) -> str:
@@ -104,20 +105,28 @@ def console_table(results: list[dict]) -> str:
     return (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
 
 
-def previous_record(run_dir: Path, overrides) -> dict | None:
-    """The record of a run that already completed in this directory (a re-run sweep skips it), else None."""
-    path = run_dir / RECORD
-    if not path.exists():
-        return None
-    record = json.loads(path.read_text())
-    if record.get("status") != "completed":
-        return None
-    wanted = [o for o in overrides if not o.startswith("resume=")]
-    had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
-    if sorted(had) != sorted(wanted):
-        raise ValueError(f"run directory {run_dir} holds a completed run of other overrides ({' '.join(had)}); "
-                         "choose another hydra.run.dir / hydra.sweep.dir")
-    return record
+def loadable(path: Path) -> bool:
+    try:
+        torch.load(path, map_location="cpu", weights_only=True)
+        return True
+    except Exception:  # noqa: BLE001 - truncated, garbage, another format: all mean "cannot resume from it"
+        return False
+
+
+def resume_checkpoint(ckpt_dir: Path) -> Path | None:
+    """The checkpoint to resume from: last.ckpt, or best.ckpt when last.ckpt is damaged (both hold the full
+    training state), or None (start from the beginning) when neither loads; a damaged file is reported, and
+    overwritten by the run's next checkpoint, so a damaged file never blocks a run."""
+    for name in ("last.ckpt", "best.ckpt"):
+        path = ckpt_dir / name
+        if not path.exists():
+            continue
+        if loadable(path):
+            return path
+        log.warning("checkpoint %s cannot be loaded (damaged or truncated); not resuming from it", path)
+    if ckpt_dir.is_dir() and any(ckpt_dir.glob("*.ckpt")):
+        log.warning("no checkpoint in %s loads: training from the beginning", ckpt_dir)
+    return None
 
 
 def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
@@ -132,27 +141,28 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     t = cfg.trainer
     if t.get("threads"):
         torch.set_num_threads(int(t.threads))
+    threads = torch.get_num_threads()  # recorded: the numbers depend on it (docs/reliability.md)
     L.seed_everything(cfg.seed, workers=True)  # 0 included
 
     dm = build_datamodule(cfg)
     noise_levels = [float(s) for s in cfg.noise.eval_std]
     windows = [int(k) for k in cfg.evaluation.windows]
     if is_baseline(cfg.model.net._target_):
-        return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows)
+        return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows, threads)
     model = build_model(cfg)
     monitor = monitor_of(cfg, model.objective)
 
-    ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
-                                               mode="min", save_last=True, auto_insert_metric_name=False)
+    ckpt = RunCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor, mode="min",
+                         save_last=True, auto_insert_metric_name=False)
     clock = TrainingClock()
     curves = LearningCurves(clock, noise_levels, every_n_steps=cfg.trainer.get("curve_every_n_steps"))
     trainer = build_trainer(cfg, run_dir, [clock, curves, ckpt])
     dm.setup("fit")
-    last = run_dir / "checkpoints" / "last.ckpt"
-    if last.exists():
+    last = resume_checkpoint(run_dir / "checkpoints")
+    if last is not None:
         log.info("resuming from %s", last)
     start = time.perf_counter()
-    trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last.exists() else None)
+    trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last is not None else None)
     fit_seconds = time.perf_counter() - start
     train_seconds = clock.seconds  # evaluations excluded, the time before a resume included
 
@@ -164,13 +174,14 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
 
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
                         results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
-                        fit_seconds=round(fit_seconds, 2))
-    write_json_atomic(run_dir / RECORD, record)
+                        fit_seconds=round(fit_seconds, 2), threads=threads)
+    write_record(run_dir, record)
     log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
     return record
 
 
-def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, noise_levels, windows) -> dict:
+def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, noise_levels, windows,
+                 threads: int) -> dict:
     """A baseline without a network (``trainable = False``, e.g. least squares): no Lightning, no training.
     Its record has the same form as a network run's, with steps 0 and train_seconds = the time of its fits
     (all done while evaluating); curves.csv has the header only (no learning curve)."""
@@ -180,8 +191,8 @@ def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, n
     write_outputs(run_dir, predictions, pd.DataFrame(columns=CURVE_COLUMNS))
     record = run_record("completed", overrides, cfg.seed, steps=0, train_seconds=estimator.fit_seconds,
                         results=results, monitor=None, best_checkpoint=None,
-                        fit_seconds=round(estimator.fit_seconds, 2))
-    write_json_atomic(run_dir / RECORD, record)
+                        fit_seconds=round(estimator.fit_seconds, 2), threads=threads)
+    write_record(run_dir, record)
     log.info("run %s: baseline %s, fits in %.2f s\n%s", run_dir, cfg.model.net._target_, estimator.fit_seconds,
              console_table(results))
     return record

@@ -90,7 +90,9 @@ def compare_marks(table: pd.DataFrame, compare: str | None = None) -> pd.DataFra
     fewer than 2 seeds), or "" (no mean, or no other row to compare with). A group is the rows sharing every
     index level but the compared one."""
     cols = cell_columns(table)
-    marks = pd.DataFrame("", index=table.index, columns=pd.MultiIndex.from_tuples(cols) if cols else None)
+    # no completed cell (every job failed): an empty frame of the right index, not a constructor error
+    marks = pd.DataFrame("", index=table.index, columns=pd.MultiIndex.from_tuples(cols)) if cols \
+        else pd.DataFrame(index=table.index)
     level = compared_level(table, compare)
     if level is None or not cols:
         return marks
