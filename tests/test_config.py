@@ -38,6 +38,34 @@ BAD = [
     (["data=tiny", "evaluation.windows=[202]"], r"evaluation.windows = \[202\] is not allowed: .* = 201\]"),
     (["car.c3=-1"], r"car.c3 = -1.0 is not allowed: must be finite and > 0"),
     (["+car.c4=1"], r"car.c4 = 1.0 is not allowed: unknown; the car's constants are m1, m2, k1, k2, k3, c2, c3"),
+    # non-finite values wherever a float is accepted
+    (["noise.eval_std=[0.0,inf]"], r"noise.eval_std = \[0.0, inf\] is not allowed: every value must be finite"),
+    (["noise.train_std=inf"], r"noise.train_std = inf is not allowed: must be finite"),
+    (["model.optim.lr=inf"], r"model.optim.lr = inf is not allowed: must be finite"),
+    (["model.optim.lr=nan"], r"model.optim.lr = nan is not allowed: must be finite"),
+    (["model.optim.weight_decay=inf"], r"model.optim.weight_decay = inf is not allowed: must be finite"),
+    (["data.speed=inf"], r"data.speed = inf is not allowed: must be finite"),
+    (["data.dt=nan"], r"data.dt = nan is not allowed: must be finite"),
+    (["objective=combined", "objective.hybrid_weight=inf"], r"objective.hybrid_weight = inf is not allowed"),
+    # seeds: numpy's and Lightning's are 32-bit unsigned
+    (["seed=-1"], r"seed = -1 is not allowed: must lie in \[0, 4294967295\]"),
+    (["seed=4294967296"], r"seed = 4294967296 is not allowed: must lie in \[0, 4294967295\]"),
+    (["data.seed=-3"], r"data.seed = -3 is not allowed: must lie in \[0, 4294967295\]"),
+    # the optimiser, the schedule, the network's and the objective's own arguments
+    (["model.optim.name=sgd"], r"model.optim.name = 'sgd' is not allowed: one of adam, adamw"),
+    (["model.optim.schedule=linear"], r"model.optim.schedule = 'linear' is not allowed: one of constant, onecycle"),
+    (["model.net.kernel_size=4"], r"model.net.kernel_size = 4 is invalid; it must be odd"),
+    (["model.net.downsample=avg"], r"model.net.downsample = 'avg' is unknown"),
+    (["+model.net.no_such_arg=1"], r"model.net: .*unexpected keyword argument 'no_such_arg'"),
+    (["objective.norm=l3"], r"objective.norm = 'l3' is unknown"),
+    # a key the schema does not have, added with +
+    (["+data.n_road=3"], r"data.n_road = 3 is not allowed: unknown key \(did you mean data.n_roads\?\)"),
+    (["+trainer.max_step=3"], r"trainer.max_step = 3 is not allowed: unknown key"),
+    (["+no_such_top=1"], r"no_such_top = 1 is not allowed: unknown key"),
+    # a dataset larger than any memory: 40 * 50 recordings of 1e9 steps, 4 channels at 8 bytes (6.4e13 bytes), and
+    # 40 road profiles of 1e9 steps twice at 8 bytes (6.4e11): 6.464e13 bytes = 6.02e4 GiB
+    (["data.n_steps=1000000000"], r"data.n_roads \* data.n_masses \* data.n_steps = '40 \* 50 \* 1000000000' is "
+                                  r"not allowed: the dataset needs about 6.02e\+04 GiB, more than the"),
 ]
 
 
@@ -48,8 +76,41 @@ def test_bad_values_are_named(make_cfg, overrides, match):
 
 
 def test_the_default_config_is_valid(make_cfg):
-    for extra in ([], ["model=paper_cnn"], ["data=tiny"], ["data=paper"], ["objective=combined"]):
+    for extra in ([], ["model=paper_cnn"], ["data=tiny"], ["data=paper"], ["objective=combined"],
+                  ["objective=hybrid"], ["model=ls_bandpass"], ["seed=4294967295", "data.seed=0"]):
         validate(make_cfg(*extra))
+
+
+def test_every_experiment_is_valid(make_cfg):
+    from hybrid_sysid.config import CONF_DIR
+    from pathlib import Path
+    for name in sorted(p.stem for p in (Path(CONF_DIR) / "experiment").glob("*.yaml")):
+        validate(make_cfg(f"experiment={name}"))
+
+
+def test_a_misspelt_experiment_fails_at_composition(make_cfg):
+    # an optional group would silently drop it and run a plain single run
+    with pytest.raises(ConfigCompositionException, match="Could not find 'experiment/robustnes'"):
+        make_cfg("experiment=robustnes")
+
+
+def test_the_size_bound_compares_with_the_memory_available(make_cfg, monkeypatch):
+    import hybrid_sysid.config as config
+    cfg = make_cfg("data=tiny")  # 6 roads * 8 masses * 400 steps
+    need = 6 * 8 * 400 * 4 * 8 + 2 * 6 * 400 * 8  # the channels at 8 bytes, the road profiles twice
+    assert config.dataset_bytes(cfg) == need
+    monkeypatch.setattr(config, "available_memory", lambda: need - 1)
+    with pytest.raises(ConfigError, match="data.n_roads \\* data.n_masses \\* data.n_steps"):
+        validate(cfg)
+    monkeypatch.setattr(config, "available_memory", lambda: need)
+    validate(cfg)
+
+
+def test_available_memory_is_at_most_what_the_kernel_reports():
+    from hybrid_sysid.config import available_memory
+    kb = next(int(ln.split()[1]) for ln in open("/proc/meminfo") if ln.startswith("MemAvailable:"))
+    got = available_memory()
+    assert 0 < got <= kb * 1024 * 1.05  # the kernel's figure moves a little between the two reads
 
 
 @pytest.mark.parametrize("overrides, error", [

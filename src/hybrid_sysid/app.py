@@ -175,10 +175,12 @@ def hydra_main(cfg: DictConfig) -> dict:
     multirun = hc.mode == RunMode.MULTIRUN
     seed = cfg.get("seed", 0)
     sweep_dir = Path(hc.sweep.dir) if multirun else None
-    if _stopped(sweep_dir):
+    if _stopped(sweep_dir):  # a signal came while Hydra composed and launched: do not start
+        name = signal.Signals(_received).name if _received else "the sweep's interruption"
+        result = _record_end(run_dir, overrides, seed, "interrupted", f"not started: interrupted by {name}")
         if not multirun:
             sys.exit(128 + _received)
-        return _record_end(run_dir, overrides, seed, "interrupted", "not started: the sweep was interrupted")
+        return result
     with interruptible():
         try:
             # imported here: a sweep's parent process composes and launches jobs, and need not load torch for it

@@ -184,28 +184,61 @@ def load_dataset(spec: DatasetSpec, path: Path) -> QCMDataset:
     return QCMDataset(spec=spec, **arrays)
 
 
+def _cache_warning(message: str) -> None:
+    warnings.warn(message, RuntimeWarning, stacklevel=3)
+    log.warning(message)
+
+
+def _remove_stale_temporaries(path: Path) -> None:
+    """Temporary files of ``path`` left by a writer that was killed (files.write_atomic names them
+    .<name>.<random>.tmp). Called under the file's lock: only the lock's holder writes them, so none is live."""
+    for tmp in path.parent.glob(f".{path.name}.*.tmp"):
+        try:
+            tmp.unlink()
+            log.info("removed %s, left by an interrupted write", tmp)
+        except OSError:
+            pass
+
+
 def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -> QCMDataset:
     """Load the dataset from the cache if present and intact, otherwise simulate it and store it.
 
     A file lock makes concurrent jobs (a sweep) generate a dataset once: the others wait, then load it.
-    A cache file that fails its checks is regenerated, with a warning, never loaded.
+    A cache file that fails its checks is regenerated, with a warning, never loaded. A cache that cannot be
+    written (read-only, full, a directory in the file's place) costs a warning: the dataset is then simulated
+    and used from memory, and a valid file in a read-only cache is still read.
     """
     spec.validate()
     if cache_dir is None:
         return generate_dataset(spec)
     path = cache_path(spec, cache_dir)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with FileLock(str(path) + ".lock"):
+    lock = None
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        lock = FileLock(str(path) + ".lock", timeout=-1)
+        lock.acquire()
+    except OSError as exc:
+        lock = None
+        _cache_warning(f"dataset cache {path.parent} cannot be locked ({type(exc).__name__}: {exc}); "
+                       "using it without the lock")
+    try:
+        if lock is not None:
+            _remove_stale_temporaries(path)
         if path.exists():
             try:
                 ds = load_dataset(spec, path)
                 log.info("loaded cached dataset %s", path)
                 return ds
             except CacheError as exc:
-                warnings.warn(f"{exc}; regenerating it", RuntimeWarning, stacklevel=2)
-                log.warning("%s; regenerating it", exc)
+                _cache_warning(f"{exc}; regenerating it")
         log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps,
                  path)
         ds = generate_dataset(spec)
-        save_dataset(ds, path)
+        try:
+            save_dataset(ds, path)
+        except OSError as exc:
+            _cache_warning(f"dataset not cached at {path} ({type(exc).__name__}: {exc}); using it from memory")
         return ds
+    finally:
+        if lock is not None:
+            lock.release()

@@ -19,7 +19,8 @@ import yaml
 from hybrid_sysid.records import RECORD
 
 HEAD = ["run", "status", "error", "seed"]
-TAIL = ["split", "noise_std", "windows", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds"]
+TAIL = ["split", "noise_std", "windows", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds",
+        "threads"]
 RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
 
 
@@ -89,7 +90,7 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
     try:
         rec = json.loads((run_dir / RECORD).read_text())
         base = {"run": name, "status": str(rec["status"]), "error": rec.get("error"), "seed": rec.get("seed"),
-                "steps": rec.get("steps"), "train_seconds": rec.get("train_seconds")}
+                "steps": rec.get("steps"), "train_seconds": rec.get("train_seconds"), "threads": rec.get("threads")}
         overrides = _overrides(rec.get("overrides"))
         results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
     except (OSError, ValueError, TypeError, KeyError, AttributeError) as exc:
@@ -129,7 +130,7 @@ def load_runs(paths) -> tuple[Path, pd.DataFrame]:
             choices = run_choices(names[name])
             value = choices[key] if key in choices else config_value(run_config(names[name]), key)
             df.loc[blank & (df.run == name), key] = "" if value is None else str(value)
-    for col in ("seed", "windows", "n", "steps"):
+    for col in ("seed", "windows", "n", "steps", "threads"):
         df[col] = pd.to_numeric(df[col], errors="coerce").round().astype("Int64")  # NaN-safe, writes "1" not "1.0"
     for col in ("noise_std", "mean_rel_dev", "std_rel_dev", "train_seconds"):
         df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
@@ -139,7 +140,8 @@ def load_runs(paths) -> tuple[Path, pd.DataFrame]:
 def collect(paths) -> pd.DataFrame:
     """Long form: one row per job x split x noise_std x windows x parameter; a failed or unreadable job is one
     row with NaN metrics. Columns: run, status, error, seed, one per override key (strings, "" if unset), split,
-    noise_std, windows, parameter, mean_rel_dev, std_rel_dev, n, steps, train_seconds."""
+    noise_std, windows, parameter, mean_rel_dev, std_rel_dev, n, steps, train_seconds, threads (torch's thread
+    count, empty for records written before it was recorded)."""
     return load_runs(paths)[1]
 
 

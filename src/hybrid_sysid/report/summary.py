@@ -23,6 +23,17 @@ def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
     return f" Windows averaged per recording: K = {int(ks[0])}." if len(ks) == 1 and ks[0] != 1 else ""
 
 
+def threads_warning(df: pd.DataFrame) -> str:
+    """A warning when the completed runs used different torch thread counts (their numbers then differ beyond
+    rounding: docs/reliability.md), else an empty string."""
+    done = df[df.status == "completed"].drop_duplicates("run")
+    counts = sorted(int(n) for n in done["threads"].dropna().unique()) if "threads" in done else []
+    if len(counts) < 2:
+        return ""
+    return (f"Warning: the runs used different torch thread counts ({', '.join(map(str, counts))}); the same "
+            "config gives slightly different numbers with other thread counts (set trainer.threads).")
+
+
 def failed_lines(df: pd.DataFrame) -> list[str]:
     """One markdown list item per failed or unreadable job (its swept values and seed, status and error)."""
     keys, lines = row_keys(df), []
@@ -60,7 +71,8 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
     md = [f"# Sweep summary: {METRICS[metric]} on the {split} split [%]", "",
           f"{len(runs)} runs: {len(runs) - n_bad} completed, {n_bad} failed or unreadable. Cells: mean ± sample "
           f"standard deviation (ddof=1) over seeds.{windows_note(df, table, split)}", "",
-          to_markdown(table, compare=compare), "## Failed jobs", "", *(failed_lines(df) or ["None."])]
+          to_markdown(table, compare=compare), *([threads_warning(df), ""] if threads_warning(df) else []),
+          "## Failed jobs", "", *(failed_lines(df) or ["None."])]
     sweep_dir.mkdir(parents=True, exist_ok=True)
     write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
     write_atomic(sweep_dir / "summary.md", lambda p: p.write_text("\n".join(md) + "\n", encoding="utf-8"))

@@ -19,7 +19,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
 from hybrid_sysid.report.paper import write_reproduction
-from hybrid_sysid.report.summary import write_summary
+from hybrid_sysid.report.summary import threads_warning, write_summary
 from hybrid_sysid.report.tables import to_markdown
 
 log = logging.getLogger("hybrid_sysid")
@@ -31,9 +31,16 @@ class SweepSummary(Callback):
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
-        df, table = write_summary(sweep_dir)
+        try:
+            df, table = write_summary(sweep_dir)
+        except Exception as exc:  # Hydra would turn it into a warning and exit 0: the sweep must fail instead
+            log.error("sweep summary not written: %s: %s", type(exc).__name__, exc)
+            raise SystemExit(f"no summary written in {sweep_dir} ({type(exc).__name__}: {exc})") from exc
         print(f"\nmean relative deviation on the test split [%], mean ± std over seeds ({sweep_dir}):\n")
         print(to_markdown(table))
+        warning = threads_warning(df)
+        if warning:
+            log.warning(warning)
         if self.reproduction:
             print(write_reproduction(sweep_dir))
             print(f"(written to {sweep_dir / 'reproduction.md'})")
@@ -41,4 +48,5 @@ class SweepSummary(Callback):
         if len(failed):
             for _, row in failed.iterrows():
                 log.error("job %s %s: %s", row["run"], row["status"], row["error"])
-            raise SystemExit(f"{len(failed)} of {df.run.nunique()} jobs failed; summary in {sweep_dir}")
+            raise SystemExit(f"{len(failed)} of {df.run.nunique()} jobs failed or were interrupted; summary in "
+                             f"{sweep_dir}")
