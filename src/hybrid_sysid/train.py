@@ -114,19 +114,23 @@ def loadable(path: Path) -> bool:
 
 
 def resume_checkpoint(ckpt_dir: Path) -> Path | None:
-    """The checkpoint to resume from: last.ckpt, or best.ckpt when last.ckpt is damaged (both hold the full
-    training state), or None (start from the beginning) when neither loads; a damaged file is reported, and
-    overwritten by the run's next checkpoint, so a damaged file never blocks a run."""
+    """The checkpoint to resume from: last.ckpt; best.ckpt when last.ckpt is damaged (both hold the full training
+    state); None (train from the beginning, which gives the same numbers) when best.ckpt is damaged, as the best
+    weights the run would be evaluated with are then lost, or when neither loads. Damaged files are reported and
+    overwritten by the run's next checkpoints, so a damaged file never blocks a run."""
+    ok = {}
     for name in ("last.ckpt", "best.ckpt"):
         path = ckpt_dir / name
-        if not path.exists():
-            continue
-        if loadable(path):
-            return path
-        log.warning("checkpoint %s cannot be loaded (damaged or truncated); not resuming from it", path)
-    if ckpt_dir.is_dir() and any(ckpt_dir.glob("*.ckpt")):
-        log.warning("no checkpoint in %s loads: training from the beginning", ckpt_dir)
-    return None
+        if path.exists():
+            ok[name] = loadable(path)
+            if not ok[name]:
+                log.warning("checkpoint %s cannot be loaded (damaged or truncated); not resuming from it", path)
+    if ok.get("best.ckpt", True) is False or (ok and not any(ok.values())):
+        log.warning("training %s from the beginning", ckpt_dir.parent)
+        return None
+    if ok.get("last.ckpt"):
+        return ckpt_dir / "last.ckpt"
+    return ckpt_dir / "best.ckpt" if ok.get("best.ckpt") else None
 
 
 def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
