@@ -147,14 +147,19 @@ class Preflight(Callback):
         if not saved.is_file():
             return
         try:
-            before = OmegaConf.load(saved).hydra
-            was = (sorted(before.overrides.task), OmegaConf.to_container(before.sweeper.get("params") or {}))
+            was = _sweep_of(OmegaConf.load(saved))
         except Exception:  # noqa: BLE001 - an unreadable file cannot tell: the jobs' own guards still hold
             return
-        now = (sorted(config.hydra.overrides.task), OmegaConf.to_container(config.hydra.sweeper.get("params") or {}))
+        now = _sweep_of(config)
         if was != now:
             _fail(f"hydra.sweep.dir = {_sweep_dir} holds a sweep of other overrides ({' '.join(was[0])}); "
                   "re-run it with the same ones, or choose another hydra.sweep.dir")
+
+
+def _sweep_of(cfg: DictConfig) -> tuple:
+    """What makes a sweep's jobs: its command-line overrides and the sweeper's parameters (an experiment's)."""
+    params = cfg.hydra.sweeper.get("params")
+    return sorted(cfg.hydra.overrides.task), OmegaConf.to_container(params) if params is not None else {}
 
 
 def _make_dir(path: Path, key: str) -> None:

@@ -1,0 +1,200 @@
+"""Fault injection on the app in a subprocess, as a cluster or a user would meet it: termination signals to a run
+and to a sweep, a full disk, and refusals that must leave nothing behind. Damaged files: tests/test_reliability.py."""
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+import torch
+
+pytestmark = [pytest.mark.integration, pytest.mark.faults]
+
+ARGS = ["data=tiny", "trainer=debug", "trainer.max_steps=400", "trainer.eval_every_n_steps=200",
+        "trainer.progress_bar=false", "noise.eval_std=[0.0,0.05]"]
+TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
+        "trainer.progress_bar=false"]
+
+
+def env_for(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+    return {**env, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
+
+
+def launch(tmp_path, *args):
+    return subprocess.Popen([sys.executable, "-m", "hybrid_sysid", *args], cwd=tmp_path, env=env_for(tmp_path),
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def run_app(tmp_path, *args, timeout=600):
+    return subprocess.run([sys.executable, "-m", "hybrid_sysid", *args], cwd=tmp_path, env=env_for(tmp_path),
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def record(run_dir):
+    return json.loads((run_dir / "metrics.json").read_text())
+
+
+def wait_for(path, proc, timeout=600):
+    deadline = time.time() + timeout
+    while not path.exists() and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the run ended before the signal could be sent"
+
+
+def same_numbers(a, b):
+    assert b["status"] == "completed" and b["steps"] == a["steps"]
+    for ra, rb in zip(a["results"], b["results"], strict=True):
+        assert (ra["split"], ra["noise_std"], ra["parameter"]) == (rb["split"], rb["noise_std"], rb["parameter"])
+        assert rb["mean_rel_dev"] == pytest.approx(ra["mean_rel_dev"], rel=1e-5, abs=1e-7)
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("reference")
+    proc = run_app(tmp, *ARGS, f"hydra.run.dir={tmp / 'run'}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    return record(tmp / "run")
+
+
+def interrupt(tmp_path, run, how):
+    """Start a run, wait for its first checkpoint (step 200 of 400), then end it with ``how``."""
+    proc = launch(tmp_path, *ARGS, f"hydra.run.dir={run}")
+    wait_for(run / "checkpoints" / "last.ckpt", proc)
+    time.sleep(0.3)  # a few steps past the checkpoint, well before the next one
+    proc.send_signal(how)
+    out, _ = proc.communicate(timeout=600)
+    return proc.returncode, out
+
+
+def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
+    run = tmp_path / "killed"
+    code, _ = interrupt(tmp_path, run, signal.SIGKILL)
+    assert code == -signal.SIGKILL and not (run / "metrics.json").exists()
+    saved = torch.load(run / "checkpoints" / "last.ckpt", map_location="cpu")  # torch's default weights_only
+    assert saved["global_step"] == 200
+
+    resumed = run_app(tmp_path, *ARGS, f"resume={run}")
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    assert "resuming from" in resumed.stderr
+    same_numbers(uninterrupted, record(run))
+    # the learning curve carries on across the restart
+    assert sorted(pd.read_csv(run / "curves.csv").step.unique()) == [200, 400]
+    assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]
+
+
+@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_path, uninterrupted, how):
+    run = tmp_path / "run"
+    code, out = interrupt(tmp_path, run, how)
+    assert code == 128 + how, out[-2000:]
+    rec = record(run)
+    assert rec["status"] == "interrupted" and signal.Signals(how).name in rec["error"]
+    moved = tmp_path / "moved"  # a copied or moved run directory resumes from its own files
+    run.rename(moved)
+    resumed = run_app(tmp_path, *ARGS, f"resume={moved}")
+    assert resumed.returncode == 0, resumed.stderr[-2000:]
+    same_numbers(uninterrupted, record(moved))
+    assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
+
+
+def sweep_statuses(sw):
+    summary = pd.read_csv(sw / "summary.csv", dtype={"run": str})
+    return summary.drop_duplicates("run").set_index("run").status.to_dict()
+
+
+@pytest.mark.parametrize("launcher, how", [("basic", signal.SIGTERM), ("joblib", signal.SIGINT)])
+def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how):
+    sw = tmp_path / "sw"
+    args = ["-m", f"launcher={launcher}", "seed=0,1,2,3", *TINY, f"hydra.sweep.dir={sw}"]
+    proc = launch(tmp_path, *args)
+    deadline = time.time() + 600
+    while not any(sw.glob("*/metrics.json")) and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the sweep ended before the signal could be sent"
+    proc.send_signal(how)  # the parent only, as `timeout` or `kill` would
+    out, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 128 + how, out[-3000:]
+    statuses = sweep_statuses(sw)
+    assert set(statuses.values()) <= {"completed", "interrupted"} and "interrupted" in statuses.values()
+    assert "completed" in statuses.values()
+    assert "interrupted" in (sw / "summary.md").read_text()
+    done = {run: (sw / run / "metrics.json").read_bytes() for run, s in statuses.items() if s == "completed"}
+
+    again = run_app(tmp_path, *args)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert set(sweep_statuses(sw).values()) == {"completed"} and len(sweep_statuses(sw)) == 4
+    assert all((sw / run / "metrics.json").read_bytes() == b for run, b in done.items())  # not trained again
+
+
+def test_a_full_disk_ends_with_a_record_or_one_line(tmp_path):
+    if os.geteuid() != 0:
+        pytest.skip("mounting a small filesystem needs root; without it the run dir cannot be made to fill up")
+    mnt = tmp_path / "small"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=192k", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("this platform does not allow mounting a tmpfs")
+    try:
+        proc = run_app(tmp_path, *TINY, f"hydra.run.dir={mnt / 'run'}")
+        assert proc.returncode != 0
+        stored = (mnt / "run" / "metrics.json").exists()
+        if stored:
+            rec = record(mnt / "run")
+            assert rec["status"] == "failed" and ("No space" in rec["error"] or "write" in rec["error"])
+        else:
+            assert "error: could not record the failed job" in proc.stderr
+        assert not list((mnt / "run").rglob("*.tmp"))
+    finally:
+        subprocess.run(["umount", str(mnt)], check=True)
+
+
+def refused(proc, *words):
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    last = proc.stderr.strip().splitlines()[-1]
+    assert last.startswith("error: ") and all(w in last for w in words), last
+    assert "Traceback" not in proc.stderr
+
+
+@pytest.mark.parametrize("args, words", [
+    (["experiment=robustnes"], ["Could not find 'experiment/robustnes'"]),
+    (["+data.n_road=3"], ["data.n_road", "unknown key"]),
+    (["noise.eval_std=[0.0,inf]"], ["noise.eval_std", "finite"]),
+    (["resume=no/such/dir"], ["resume", "no such directory"]),
+    (["data.n_steps=1000000000"], ["data.n_steps", "memory available"]),
+    (["hydra.run.dir=a_file/run"], ["hydra.run.dir", "cannot be created"]),
+])
+def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words):
+    (tmp_path / "a_file").write_text("not a directory")
+    proc = run_app(tmp_path, *TINY, *args)
+    if "Could not find" in words[0]:  # Hydra's own composition error: several lines, no traceback, exit 2
+        assert proc.returncode == 2 and words[0] in proc.stderr and "Traceback" not in proc.stderr
+    else:
+        refused(proc, *words)
+    assert not (tmp_path / "outputs").exists() and not (tmp_path / "cache").exists()
+    assert not (tmp_path / "no").exists()
+
+
+def test_no_command_replaces_a_completed_record(tmp_path):
+    run = tmp_path / "run"
+    first = run_app(tmp_path, *TINY, f"hydra.run.dir={run}")
+    assert first.returncode == 0, first.stderr[-2000:]
+    files = [run / "metrics.json", *(run / ".hydra").iterdir()]
+    before = [p.read_bytes() for p in files]
+    refused(run_app(tmp_path, *TINY, "seed=1", f"resume={run}"), "resume", "seed = 0 there, 1 here")
+    refused(run_app(tmp_path, *TINY, "seed=1", f"hydra.run.dir={run}"), "holds a completed run of other overrides")
+    assert [p.read_bytes() for p in files] == before  # Hydra's saved config of the run included
+    again = run_app(tmp_path, *TINY, f"resume={run}")
+    assert again.returncode == 0 and "already completed" in again.stdout + again.stderr
+    assert (run / "metrics.json").read_bytes() == before[0]
+
+    sw = tmp_path / "sw"
+    sweep = run_app(tmp_path, "-m", "model.optim.lr=0.001,-1", *TINY, f"hydra.sweep.dir={sw}")
+    records = {p: p.read_bytes() for p in sw.glob("*/metrics.json")}
+    assert sweep.returncode == 1 and len(records) == 2
+    refused(run_app(tmp_path, "-m", "model.optim.lr=-1,0.001", *TINY, f"hydra.sweep.dir={sw}"),
+            "hydra.sweep.dir", "holds a sweep of other overrides")
+    assert {p: p.read_bytes() for p in sw.glob("*/metrics.json")} == records
