@@ -80,7 +80,7 @@ def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
 
     resumed = run_app(tmp_path, *ARGS, f"resume={run}")
     assert resumed.returncode == 0, resumed.stderr[-2000:]
-    assert "resuming from" in resumed.stderr
+    assert "resuming from" in resumed.stdout + resumed.stderr
     same_numbers(uninterrupted, record(run))
     # the learning curve carries on across the restart
     assert sorted(pd.read_csv(run / "curves.csv").step.unique()) == [200, 400]
