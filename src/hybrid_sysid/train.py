@@ -6,7 +6,6 @@ point that calls it is ``hybrid_sysid.app``.
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from pathlib import Path
@@ -20,8 +19,8 @@ from omegaconf import DictConfig
 from hybrid_sysid.baselines import is_baseline
 from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
 from hybrid_sysid.config import dataset_spec, validate
-from hybrid_sysid.files import write_atomic
 from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.files import write_atomic
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.model.module import ParameterEstimator
 from hybrid_sysid.records import previous_record, run_record, write_record
