@@ -110,7 +110,7 @@ def sweep_statuses(sw):
 @pytest.mark.parametrize("launcher, how", [("basic", signal.SIGTERM), ("joblib", signal.SIGINT)])
 def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how):
     sw = tmp_path / "sw"
-    args = ["-m", f"launcher={launcher}", "seed=0,1,2,3", *TINY, f"hydra.sweep.dir={sw}"]
+    args = ["-m", f"launcher={launcher}", "seed=0,1,2", *TINY, f"hydra.sweep.dir={sw}"]
     proc = launch(tmp_path, *args)
     deadline = time.time() + 600
     while not any(sw.glob("*/metrics.json")) and proc.poll() is None and time.time() < deadline:
@@ -127,7 +127,7 @@ def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path
 
     again = run_app(tmp_path, *args)
     assert again.returncode == 0, again.stderr[-3000:]
-    assert set(sweep_statuses(sw).values()) == {"completed"} and len(sweep_statuses(sw)) == 4
+    assert set(sweep_statuses(sw).values()) == {"completed"} and len(sweep_statuses(sw)) == 3
     assert all((sw / run / "metrics.json").read_bytes() == b for run, b in done.items())  # not trained again
 
 
@@ -159,12 +159,11 @@ def refused(proc, *words):
     assert "Traceback" not in proc.stderr
 
 
+# one case per kind of refusal (every value's own check: tests/test_config.py, through the same validate)
 @pytest.mark.parametrize("args, words", [
     (["experiment=robustnes"], ["Could not find 'experiment/robustnes'"]),
     (["+data.n_road=3"], ["data.n_road", "unknown key"]),
-    (["noise.eval_std=[0.0,inf]"], ["noise.eval_std", "finite"]),
     (["resume=no/such/dir"], ["resume", "no such directory"]),
-    (["data.n_steps=1000000000"], ["data.n_steps", "memory available"]),
     (["hydra.run.dir=a_file/run"], ["hydra.run.dir", "cannot be created"]),
 ])
 def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words):
