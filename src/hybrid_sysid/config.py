@@ -107,6 +107,8 @@ class Config:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     # the car's constants (QuarterCar's fields; the group conf/car, car=paper by default), e.g. car.c3=700
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
+    # experiment=transfer: a job is a chain of runs (hybrid_sysid.transfer); null for one run
+    transfer: Optional[Dict[str, Any]] = None
 
 
 @dataclass

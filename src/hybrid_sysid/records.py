@@ -14,7 +14,7 @@ def write_json_atomic(path: Path, payload: dict) -> None:
     write_atomic(path, lambda tmp: tmp.write_text(json.dumps(payload, indent=2) + "\n"))
 
 
-def write_yaml_atomic(path: Path, payload: dict) -> None:
+def write_yaml_atomic(path: Path, payload) -> None:
     import yaml
 
     path.parent.mkdir(parents=True, exist_ok=True)

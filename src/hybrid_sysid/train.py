@@ -164,6 +164,14 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/."""
     validate(cfg)  # every range check before any work
     run_dir = Path(run_dir)
+    init = cfg.get("init_from")
+    if init and is_baseline(cfg.model.net._target_):
+        raise ConfigError(f"init_from = {init!r} is not allowed with a baseline (model.net._target_ = "
+                          f"{cfg.model.net._target_}): it has no weights to start from")
+    model = None
+    if init:  # before any directory is made or data simulated: a network that does not fit fails here
+        model = build_model(cfg)
+        log.info("starting from the weights of %s", load_network(model, cfg, Path(init), "init_from"))
     done = previous_record(run_dir, overrides)
     if done is not None:
         log.info("run %s already completed; not training it again", run_dir)
@@ -178,14 +186,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     noise_levels = [float(s) for s in cfg.noise.eval_std]
     windows = [int(k) for k in cfg.evaluation.windows]
     if is_baseline(cfg.model.net._target_):
-        if cfg.get("init_from"):
-            raise ConfigError(f"init_from = {cfg.init_from!r} is not allowed with a baseline "
-                              f"(model.net._target_ = {cfg.model.net._target_}): it has no weights to start from")
         return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows)
-    model = build_model(cfg)
-    init = cfg.get("init_from")
-    if init:  # before any data are simulated: a network that does not fit fails here
-        log.info("starting from the weights of %s", load_network(model, cfg, Path(init), "init_from"))
+    model = model if model is not None else build_model(cfg)
     monitor = monitor_of(cfg, model.objective)
 
     ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,

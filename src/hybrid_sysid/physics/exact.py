@@ -56,7 +56,9 @@ def continuous_recordings(amplitudes: np.ndarray, phases: np.ndarray, omegas: np
     car = seat_car(car, n, c3, k3)
     c3s, k3s = np.broadcast_to(car.c3, (n,)), np.broadcast_to(car.k3, (n,))
     t = dt * np.arange(n_steps)
-    basis = np.exp(1j * np.outer(omegas, t))  # (waves, steps), shared by every recording
+    arg = np.outer(omegas, t)
+    # Im(c e^{j Omega t}) = Re(c) sin(Omega t) + Im(c) cos(Omega t): one real matrix product over (sin; cos)
+    basis = np.concatenate([np.sin(arg), np.cos(arg)])  # (2 waves, steps), shared by every recording
     b = np.zeros(6)
     b[2] = car.k1 / car.m1
     seat, body = np.empty((n, n_steps)), np.empty((n, n_steps))
@@ -68,8 +70,8 @@ def continuous_recordings(amplitudes: np.ndarray, phases: np.ndarray, omegas: np
         resolvent = 1j * omegas[None, :, None, None] * np.eye(6) - a[:, None]
         x = np.linalg.solve(resolvent, np.broadcast_to(b, resolvent.shape[:-1])[..., None])[..., 0]  # (r, waves, 6)
         x = x * (amplitudes[road_of[rows]] * np.exp(-1j * phases[road_of[rows]]))[..., None]
-        out = a[:, :2] @ x.transpose(0, 2, 1)  # (r, 2, waves): the two accelerations' complex amplitudes
-        steady = (out @ basis).imag  # (r, 2, steps)
+        out = (a[:, :2] @ x.transpose(0, 2, 1)).reshape(-1, len(omegas))  # (r * 2, waves): complex amplitudes
+        steady = (np.concatenate([out.real, out.imag], axis=1) @ basis).reshape(-1, 2, n_steps)
         # the transient e^{A t_k} (-rho_p(0)), stepped with the exact one-step map
         step_map = expm(a * dt)
         state = -x.sum(axis=1).imag  # (r, 6)
