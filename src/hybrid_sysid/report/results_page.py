@@ -67,6 +67,9 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
             write_atomic(figures / f"{slug}.png",
                          lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
             lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
+            if "scenario" in table.index.names:  # experiment=transfer: the bars of its rows per scenario
+                write_atomic(figures / f"{slug}_bars.png", lambda p: sweep_figures.transfer_figure(table, p))
+                lines += [f"![transfer: {title}]({figures.name}/{slug}_bars.png)", ""]
         failed = failed_lines(df)
         if failed:
             lines += ["Failed jobs:", "", *failed, ""]
