@@ -71,6 +71,7 @@ def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int 
             ax.bar([i + (j - (len(params) - 1) / 2) * width for i in x], mean, width, yerr=err, capsize=3,
                    label=param)
         ax.set_xticks(list(x), [str(r) for r in sub.index], rotation=30, ha="right", fontsize="small")
+        ax.set_xlim(-0.5, max(len(sub), 3) - 0.5)  # bars as wide in a one-row panel as in the others
         ax.set(title=scenario, yscale="log")
         ax.grid(True, axis="y", which="both", alpha=0.3)
     axes[0, 0].set_ylabel("mean relative deviation [%]")
