@@ -191,6 +191,10 @@ def hydra_main(cfg: DictConfig) -> dict:
             # imported here: a sweep's parent process composes and launches jobs, and need not load torch for it
             from hybrid_sysid.train import train
 
+            if cfg.get("transfer"):  # experiment=transfer: a chain of runs in this job's directory
+                from hybrid_sysid.transfer import run_chain
+
+                return run_chain(cfg, run_dir, overrides)
             record = train(cfg, run_dir, overrides)
         except Interrupted as exc:
             return _interrupted(run_dir, overrides, seed, exc.signum, sweep_dir)
