@@ -171,7 +171,8 @@ def validate(cfg: DictConfig) -> None:
     """Every range check, before any work. Checks that need the physics (stability) use its own functions."""
     d, t, o = cfg.data, cfg.trainer, cfg.model.optim
     _check_known_keys(cfg)
-    _check_finite(OmegaConf.to_container(cfg, resolve=False), "")  # typed values; derived ones are checked later
+    # typed values (derived ones are checked later); the car's constants have their own check below
+    _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
     for key, value in (("seed", cfg.seed), ("data.seed", d.seed)):
         if not 0 <= value <= SEED_MAX:
             _bad(key, value, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
