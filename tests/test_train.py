@@ -142,7 +142,8 @@ def test_test_errors_per_road_class_recombine_into_the_whole_split(tiny_run):
         assert sum(r["n"] for r in parts) == whole["n"]
         assert sum(r["mean_rel_dev"] * r["n"] for r in parts) / whole["n"] == pytest.approx(whole["mean_rel_dev"])
         for r in parts:
-            sub = pred[(pred.split == "test") & (pred.noise_std == r["noise_std"]) & (pred.road_class == r["road_class"])]
+            sub = pred[(pred.split == "test") & (pred.noise_std == r["noise_std"])
+                       & (pred.road_class == r["road_class"])]
             p = r["parameter"]
             assert r["mean_rel_dev"] == pytest.approx(((sub[f"{p}_true"] - sub[f"{p}_pred"]).abs()
                                                        / sub[f"{p}_true"]).mean())

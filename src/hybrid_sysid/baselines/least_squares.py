@@ -97,7 +97,8 @@ class LeastSquaresEstimator:
         if filter not in FILTERS:
             raise ValueError(f"model.net.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
         if unknown not in UNKNOWNS:
-            raise ValueError(f"model.net.unknown = {format_value(unknown)} is not allowed: one of {', '.join(UNKNOWNS)}")
+            raise ValueError(f"model.net.unknown = {format_value(unknown)} is not allowed: "
+                             f"one of {', '.join(UNKNOWNS)}")
         for key, value in (("c3", c3), ("k3", k3)):
             if unknown == "m3" and not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 raise ValueError(f"model.net.{key} = {format_value(value)} is not allowed: must be finite and > 0 "

@@ -63,7 +63,8 @@ class QCMData:
     ``fir`` (symmetric band-pass taps, or None): the batches also carry "seat_f", "rel_vel_f", "rel_disp_f",
     the three signals of the seat equation through that filter ('valid' part of the window, W - taps + 1
     samples). The clean part is filtered once per recording in float64 here; the noise part per batch by a
-    torch FFT convolution in float32 (noise alone, without the offsets of the states before the window). Both integrations give the same filtered signals (the filter removes the offsets).
+    torch FFT convolution in float32 (noise alone, without the offsets of the states before the window). Both
+    integrations give the same filtered signals (the filter removes the offsets).
     """
 
     def __init__(self, ds: QCMDataset, window: int, integration: str = "t0", fir: np.ndarray | None = None):
@@ -80,7 +81,8 @@ class QCMData:
         if fir is not None:
             fir = np.asarray(fir, dtype=np.float64)
             if len(fir) > window:
-                raise ValueError(f"objective.filter.taps = {len(fir)} is not allowed: must be <= data.window = {window}")
+                raise ValueError(f"objective.filter.taps = {len(fir)} is not allowed: "
+                                 f"must be <= data.window = {window}")
             # by FFT, about 10x faster than torch's conv1d with 151 taps; a transform as long as the window
             # suffices, since the circular wrap-around only reaches the taps - 1 edge samples 'valid' drops
             self.nfft = 1 << int(np.ceil(np.log2(window)))
@@ -102,13 +104,13 @@ class QCMData:
                                  for v in relative_states(acc[:, 0], acc[:, 1], self.dt, self.measurement))
         else:
             rel_vel, rel_disp = gather(self.rel_vel, rows, starts), gather(self.rel_disp, rows, starts)
-        out = {}
+        noise_f = None
         if noise is not None:
             nv, nd = relative_states(noise[:, 0], noise[:, 1], self.dt, self.measurement)
             if self.fir is not None:  # the window's own noise only: the filter removes what came before
                 parts = torch.from_numpy(np.stack([noise[:, 0], nv, nd], axis=1).astype(np.float32))
                 full = torch.fft.irfft(torch.fft.rfft(parts, self.nfft) * self.fir, self.nfft)
-                out["noise_f"] = full[..., self.taps - 1:self.window]
+                noise_f = full[..., self.taps - 1:self.window]
             if self.integration == "t0":
                 if state is not None:  # v_{s+k} = V + local v_k; x_{s+k} = X + (k + 1) dt V + local x_k
                     nv = nv + state[:, :1]
@@ -122,8 +124,8 @@ class QCMData:
         if self.fir is not None:
             for i, key in enumerate(("seat_f", "rel_vel_f", "rel_disp_f")):
                 batch[key] = gather(self.filtered[i], rows, starts)
-                if "noise_f" in out:
-                    batch[key] = batch[key] + out["noise_f"][:, i]
+                if noise_f is not None:
+                    batch[key] = batch[key] + noise_f[:, i]
         return batch
 
 
