@@ -41,6 +41,8 @@ BAD = [
      r"objective.weighting = 'eiv' is not allowed: needs objective.filter"),
     (["objective=hybrid", "objective.weighting=tls"], r"objective.weighting = 'tls' is not allowed: one of none, eiv"),
     (["model=ls_bandpass_m3", "model.net.unknown=k3"], r"model.net.unknown = 'k3' is not allowed: one of p, m3"),
+    (["model=ls_bandpass_m3", "data.seat_spread=0.3"],
+     r"model.net.unknown = 'm3' is not allowed: needs the car's C3 and K3 on every recording"),
     (["evaluation.windows=[1,0]"], r"evaluation.windows = \[1, 0\] is not allowed: a non-empty list of integers K in "
                                    r"\[1, data.n_steps - data.window \+ 1 = 701\]"),
     (["evaluation.windows=[]"], r"evaluation.windows = \[\] is not allowed: a non-empty list of integers K"),

@@ -3,7 +3,7 @@ gap to it exceeds the seed spread; as GitHub markdown and as LaTeX (booktabs).
 
 The spread over seeds is the sample standard deviation (ddof=1); with a single seed it is NaN and no "±" is
 shown. The rule (one line, printed under every table): in each column, among rows that differ only in the
-compared key (``objective`` when it is swept), the lowest mean is **bold**; a row is marked † when its gap to the
+compared key (``objective`` when it is swept, ``row`` in experiment=transfer's table), the lowest mean is **bold**; a row is marked † when its gap to the
 bold row is larger than the combined seed spread, |m_a - m_b| > s_a + s_b. A row with fewer than two seeds has no
 spread and is never marked †. Lower is better: both metrics are errors.
 """
@@ -72,14 +72,15 @@ def cell_columns(table: pd.DataFrame) -> list[tuple]:
 
 def compared_level(table: pd.DataFrame, compare: str | None = None) -> str | None:
     """The index level whose values are compared: ``compare`` if given, else ``objective`` when it is a level,
-    else the first level that is not K. None for the single "all" row."""
+    else ``row`` (experiment=transfer's table) when it is one, else the first level that is not K. None for the single "all" row."""
     names = [str(n) for n in table.index.names]
     if compare is not None:
         if compare not in names:
             raise ValueError(f"compare={compare!r} is not a row key of the table; row keys: {names}")
         return compare
-    if "objective" in names:
-        return "objective"
+    for preferred in ("objective", "row"):  # "row": experiment=transfer's rows within a scenario
+        if preferred in names:
+            return preferred
     candidates = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
     return candidates[0] if candidates else None
 
