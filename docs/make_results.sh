@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Re-run every sweep behind docs/results.md (about 75 minutes on two CPU cores), then regenerate the page.
+# Re-run every sweep behind docs/results.md (about two hours on two CPU cores), then regenerate the page.
 # With the sweeps already on disk, only the last command is needed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -10,5 +10,12 @@ hybrid-sysid experiment=ablations data.measurement=paper noise.train_std=0.0 hyd
 hybrid-sysid experiment=ablations data.measurement=consistent noise.train_std=0.01 hydra.sweep.dir=$out/ablations_trainnoise
 hybrid-sysid experiment=baselines hydra.sweep.dir=$out/baselines
 hybrid-sysid experiment=paper hydra.sweep.dir=$out/paper
+hybrid-sysid experiment=transfer hydra.sweep.dir=$out/transfer
+hybrid-sysid experiment=robustness data.seat_spread=0.3 hydra.sweep.dir=$out/robustness_spread
+hybrid-sysid experiment=noise_robust hydra.sweep.dir=$out/noise_robust
+hybrid-sysid experiment=baselines data.measurement=paper hydra.sweep.dir=$out/baselines_paper
+hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01 \
+  objective=labelled,hybrid_bandpass,hybrid_eiv hydra.sweep.dir=$out/noise_robust_paper
 hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
-  $out/paper --results docs/results.md --notes docs/results_notes.md --reproduction
+  $out/paper $out/transfer $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
+  --results docs/results.md --notes docs/results_notes.md --reproduction

@@ -127,3 +127,23 @@ def test_curve_points_every_n_steps_and_at_the_end(make_cfg, tmp_path):
     train(make_cfg(*TINY, "trainer.max_steps=50", "trainer.curve_every_n_steps=20"), tmp_path / "c")
     curves = pd.read_csv(tmp_path / "c" / "curves.csv")
     assert sorted(curves.step.unique()) == [20, 40, 50]  # validations at 10, 20, ..., 50; the last one too
+
+
+def test_test_errors_per_road_class_recombine_into_the_whole_split(tiny_run):
+    """metrics.json's by_road_class: per class, the mean of predictions.csv's deviations; weighted by n they
+    give back the split's figure."""
+    record, run_dir = tiny_run
+    pred = pd.read_csv(run_dir / "predictions.csv")
+    rows = record["by_road_class"]
+    assert rows and {r["road_class"] for r in rows} == set(pred[pred.split == "test"].road_class)
+    for whole in (r for r in record["results"] if r["split"] == "test"):
+        parts = [r for r in rows if (r["noise_std"], r["windows"], r["parameter"]) ==
+                 (whole["noise_std"], whole["windows"], whole["parameter"])]
+        assert sum(r["n"] for r in parts) == whole["n"]
+        assert sum(r["mean_rel_dev"] * r["n"] for r in parts) / whole["n"] == pytest.approx(whole["mean_rel_dev"])
+        for r in parts:
+            sub = pred[(pred.split == "test") & (pred.noise_std == r["noise_std"])
+                       & (pred.road_class == r["road_class"])]
+            p = r["parameter"]
+            assert r["mean_rel_dev"] == pytest.approx(((sub[f"{p}_true"] - sub[f"{p}_pred"]).abs()
+                                                       / sub[f"{p}_true"]).mean())

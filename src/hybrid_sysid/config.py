@@ -20,7 +20,9 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hybrid_sysid.data import DatasetSpec, split_by_road
+from hybrid_sysid.data.datamodule import INTEGRATIONS
 from hybrid_sysid.data.dataset import CHANNELS
+from hybrid_sysid.model.objectives import WEIGHTINGS, filter_taps
 from hybrid_sysid.physics import DEFAULT_MEASUREMENT, QuarterCar
 
 CONF_DIR = str(Path(__file__).resolve().parent / "conf")  # inside the package, so an installed wheel has it
@@ -46,6 +48,7 @@ class DataConfig:
     measurement: str = DEFAULT_MEASUREMENT
     seat_spread: float = 0.0
     window: int = 500
+    integration: str = "t0"  # t0 | window (hybrid_sysid.data.datamodule.QCMData)
     train_fraction: float = 0.8
     val_fraction: float = 0.125
     seed: int = 0
@@ -224,8 +227,26 @@ def validate(cfg: DictConfig) -> None:
     if not windows or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= n_starts for k in windows):
         _bad("evaluation.windows", windows, f"a non-empty list of integers K in [1, data.n_steps - data.window + 1 "
              f"= {n_starts}] (windows per recording)")
+    if d.integration not in INTEGRATIONS:
+        _bad("data.integration", d.integration, f"one of {', '.join(INTEGRATIONS)}")
     _validate_baseline(cfg)
     obj = cfg.objective
+    net = cfg.model.net
+    if net.get("unknown") == "m3" and d.get("seat_spread", 0.0) > 0:
+        _bad("model.net.unknown", "m3", f"needs the car's C3 and K3 on every recording, but data.seat_spread = "
+             f"{d.seat_spread} varies them; use unknown=p")
+    if obj.get("filter") is not None:
+        try:
+            taps = len(filter_taps(OmegaConf.to_container(obj.filter), d.dt))
+        except ValueError as exc:  # the message names the key
+            raise ConfigError(str(exc)) from exc
+        if taps > d.window - 9:
+            _bad("objective.filter.taps", taps, f"must be <= data.window - 9 = {d.window - 9} (the band-pass must "
+                 "leave at least 10 samples of each window)")
+    if obj.get("weighting", "none") not in WEIGHTINGS:
+        _bad("objective.weighting", obj.weighting, f"one of {', '.join(WEIGHTINGS)}")
+    if obj.get("weighting", "none") == "eiv" and obj.get("filter") is None:
+        _bad("objective.weighting", "eiv", "needs objective.filter (integrated noise has no finite variance)")
     if "labelled_weight" in obj or "hybrid_weight" in obj:
         lw, hw = obj.get("labelled_weight", 0.0), obj.get("hybrid_weight", 0.0)
         if lw < 0 or hw < 0 or lw + hw == 0:

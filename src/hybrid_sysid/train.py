@@ -24,16 +24,21 @@ from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.model.objectives import filter_taps
 from hybrid_sysid.records import RECORD, previous_record, run_record, write_record
 
 log = logging.getLogger("hybrid_sysid")
 
 
 def build_datamodule(cfg: DictConfig) -> QCMDataModule:
+    """The data module; with ``objective.filter`` its batches carry the band-passed signals too."""
     d = cfg.data
+    f = cfg.objective.get("filter")
+    fir = None if f is None else filter_taps(OmegaConf.to_container(f), d.dt)
     return QCMDataModule(dataset_spec(cfg), cache_dir=d.cache_dir, window=d.window, batch_size=cfg.model.batch_size,
                          train_fraction=d.train_fraction, val_fraction=d.val_fraction,
-                         eval_std=list(cfg.noise.eval_std), train_std=cfg.noise.train_std, seed=cfg.seed)
+                         eval_std=list(cfg.noise.eval_std), train_std=cfg.noise.train_std, seed=cfg.seed,
+                         integration=d.get("integration", "t0"), fir=fir)
 
 
 def build_model(cfg: DictConfig) -> ParameterEstimator:
@@ -89,6 +94,25 @@ def evaluate(model, dm: QCMDataModule, noise_levels, windows=(1,)) -> tuple[list
             "road_class": dm.dataset.road_class[rows], "m3": dm.dataset.m3[rows], "p1_true": true[:, 0],
             "p1_pred": pred[:, 0], "p2_true": true[:, 1], "p2_pred": pred[:, 1]}))
     return results, pd.concat(frames, ignore_index=True)
+
+
+def by_road_class(predictions: pd.DataFrame) -> list[dict]:
+    """Test relative deviations per road class, noise level and K (metrics.json's "by_road_class"): under
+    noise the smooth classes, whose signals are smallest, carry most of the error."""
+    rows = []
+    test = predictions[predictions.split == "test"]
+    for (std, k, cls), g in test.groupby(["noise_std", "windows", "road_class"], sort=True):
+        pred, true = g[["p1_pred", "p2_pred"]].to_numpy(), g[["p1_true", "p2_true"]].to_numpy()
+        rows += summarise(pred, true, split="test", noise_std=float(std), windows=int(k), road_class=str(cls))
+    return rows
+
+
+def class_table(rows: list[dict]) -> str:
+    if not rows:
+        return ""
+    table = pd.DataFrame(rows).pivot_table(index=["noise_std", "windows"], columns=["parameter", "road_class"],
+                                           values="mean_rel_dev")
+    return "test mean rel. dev. [%] per road class\n" + (table * 100).round(2).to_string()
 
 
 def write_outputs(run_dir: Path, predictions: pd.DataFrame, curves: pd.DataFrame) -> None:
@@ -224,12 +248,14 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     results, predictions = evaluate(model, dm, noise_levels, windows)
     write_outputs(run_dir, predictions, pd.DataFrame(curves.rows, columns=CURVE_COLUMNS))
 
+    classes = by_road_class(predictions)
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
                         results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
-                        fit_seconds=round(fit_seconds, 2), threads=threads,
+                        fit_seconds=round(fit_seconds, 2), threads=threads, by_road_class=classes,
                         **({"init_from": str(init)} if init else {}))
     write_record(run_dir, record)
-    log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
+    log.info("run %s: %d steps in %.1f s\n%s\n%s", run_dir, trainer.global_step, train_seconds,
+             console_table(results), class_table(classes))
     return record
 
 
@@ -242,12 +268,13 @@ def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, n
     dm.setup()
     results, predictions = evaluate(estimator, dm, noise_levels, windows)
     write_outputs(run_dir, predictions, pd.DataFrame(columns=CURVE_COLUMNS))
+    classes = by_road_class(predictions)
     record = run_record("completed", overrides, cfg.seed, steps=0, train_seconds=estimator.fit_seconds,
                         results=results, monitor=None, best_checkpoint=None,
-                        fit_seconds=round(estimator.fit_seconds, 2), threads=threads)
+                        fit_seconds=round(estimator.fit_seconds, 2), threads=threads, by_road_class=classes)
     write_record(run_dir, record)
-    log.info("run %s: baseline %s, fits in %.2f s\n%s", run_dir, cfg.model.net._target_, estimator.fit_seconds,
-             console_table(results))
+    log.info("run %s: baseline %s, fits in %.2f s\n%s\n%s", run_dir, cfg.model.net._target_,
+             estimator.fit_seconds, console_table(results), class_table(classes))
     return record
 
 

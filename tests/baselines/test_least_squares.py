@@ -98,3 +98,28 @@ def test_under_noise_the_band_pass_beats_the_unfiltered_fit(dm):
     band = mean_dev(LeastSquaresEstimator(span="series", filter="bandpass"), dm, 0.01)
     # measured: plain 3.2 / 0.81 (p1 / p2: integrated noise swamps the regressors), band-pass 0.008 / 0.002
     assert (band < 0.2 * plain).all() and (band < 0.1).all()
+
+
+def test_one_parameter_fit_with_c3_and_k3_known(clean_recordings, dm):
+    """unknown=m3: q = 1/m3 by least squares (numpy lstsq as the reference), p = q (C3, K3); exact on clean
+    data, and under noise at least as close as the two-parameter band-pass fit on the same windows."""
+    from hybrid_sysid.physics import QuarterCar
+    car = QuarterCar()
+    r = clean_recordings
+    np.testing.assert_allclose(fit_p(r["seat"], r["rel_vel"], r["rel_disp"], car=(car.c3, car.k3)), r["p"], rtol=1e-6)
+    rng = np.random.default_rng(0)
+    y = r["seat"] + 0.3 * rng.standard_normal(r["seat"].shape)
+    u = -(car.c3 * r["rel_vel"] + car.k3 * r["rel_disp"])
+    want = np.array([np.linalg.lstsq(u[i][:, None], y[i], rcond=None)[0][0] for i in range(len(y))])
+    got = fit_p(y, r["rel_vel"], r["rel_disp"], car=(car.c3, car.k3))
+    np.testing.assert_allclose(got, want[:, None] * [car.c3, car.k3], rtol=1e-9)
+    one = LeastSquaresEstimator(span="window", filter="bandpass", unknown="m3", c3=car.c3, k3=car.k3)
+    two = LeastSquaresEstimator(span="window", filter="bandpass")
+    for std in (0.0, 0.01):
+        (p_one, true), (p_two, _) = one.predict_split(dm, "test", std), two.predict_split(dm, "test", std)
+        dev_one, dev_two = relative_deviation(p_one, true).mean(0), relative_deviation(p_two, true).mean(0)
+        assert (dev_one <= dev_two + 1e-7).all() if std else dev_one.max() < 1e-6
+    with pytest.raises(ValueError, match=r"model.net.c3 = None is not allowed: must be finite and > 0"):
+        LeastSquaresEstimator(unknown="m3")
+    with pytest.raises(ValueError, match=r"model.net.unknown = 'k3' is not allowed: one of p, m3"):
+        LeastSquaresEstimator(unknown="k3")

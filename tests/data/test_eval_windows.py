@@ -71,11 +71,15 @@ def test_k1_is_one_seeded_window_per_recording_with_the_noise_asked_for(dm, spli
         return
     assert noise.std() == pytest.approx(std, rel=0.1)
     assert abs(noise.mean()) < 0.1 * std
-    # the noise enters the hybrid objective's regressors as the window re-integrates it
+    # the noise enters the hybrid objective's regressors as the window re-integrates it, on top of the state
+    # the noise before the window had reached: a constant velocity v0 and the displacement it carries on
     vel, disp = relative_states_by_loop(noise[:, 0], noise[:, 1], SPEC.dt)
-    for key, want in (("rel_vel", vel), ("rel_disp", disp)):
-        got = (batch[key] - clean[key]).numpy()
-        np.testing.assert_allclose(got, want, rtol=0, atol=1e-5 * np.abs(want).max())
+    extra_v = (batch["rel_vel"] - clean["rel_vel"]).numpy() - vel
+    v0 = extra_v[:, :1]
+    np.testing.assert_allclose(extra_v, np.broadcast_to(v0, vel.shape), rtol=0, atol=1e-5 * np.abs(vel).max())
+    extra_d = (batch["rel_disp"] - clean["rel_disp"]).numpy() - disp - SPEC.dt * np.arange(1, 101) * v0
+    np.testing.assert_allclose(extra_d, np.broadcast_to(extra_d[:, :1], disp.shape), rtol=0,
+                               atol=1e-5 * np.abs(disp).max())
 
 
 def test_k_windows_are_distinct_reproducible_and_nested(dm):

@@ -1,6 +1,6 @@
 """Classical baselines without a network, evaluated like a trained model (``predict_split``)."""
 
-from hybrid_sysid.baselines.filters import bandpass_taps, check_bandpass, fir_valid
+from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass, fir_valid
 from hybrid_sysid.baselines.least_squares import LeastSquaresEstimator, fit_p, lstsq_rows
 
 

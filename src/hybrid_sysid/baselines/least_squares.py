@@ -17,12 +17,13 @@ import time
 
 import numpy as np
 
-from hybrid_sysid.baselines.filters import format_value, bandpass_taps, check_bandpass, fir_valid
+from hybrid_sysid.physics.filters import format_value, bandpass_taps, check_bandpass, fir_valid
 from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
 from hybrid_sysid.physics import relative_states
 
 SPANS = ("window", "series")
 FILTERS = ("none", "bandpass")
+UNKNOWNS = ("p", "m3")
 _SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
 
 
@@ -51,11 +52,21 @@ def lstsq_rows(a: np.ndarray, b: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
-def fit_p(seat: np.ndarray, rel_vel: np.ndarray, rel_disp: np.ndarray, taps: np.ndarray | None = None) -> np.ndarray:
-    """(p1, p2) per row from z'' = -p1 rel_vel - p2 rel_disp, after an optional FIR on all three signals."""
+def fit_p(seat: np.ndarray, rel_vel: np.ndarray, rel_disp: np.ndarray, taps: np.ndarray | None = None,
+          car: tuple[float, float] | None = None) -> np.ndarray:
+    """(p1, p2) per row from z'' = -p1 rel_vel - p2 rel_disp, after an optional FIR on all three signals.
+
+    ``car`` = (C3, K3) known (the paper's premise: only the seat mass m3 is unknown): one parameter per row,
+    q = 1 / m3, from z'' = -q (C3 rel_vel + K3 rel_disp), and p = q (C3, K3)."""
     if taps is not None:
         seat, rel_vel, rel_disp = (fir_valid(v, taps) for v in (seat, rel_vel, rel_disp))
-    return lstsq_rows(-np.asarray(rel_vel, dtype=np.float64), -np.asarray(rel_disp, dtype=np.float64), seat)
+    rel_vel, rel_disp = np.asarray(rel_vel, dtype=np.float64), np.asarray(rel_disp, dtype=np.float64)
+    if car is None:
+        return lstsq_rows(-rel_vel, -rel_disp, seat)
+    u = -(car[0] * rel_vel + car[1] * rel_disp)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        q = np.einsum("ij,ij->i", u, np.asarray(seat, dtype=np.float64)) / np.einsum("ij,ij->i", u, u)
+    return q[:, None] * np.asarray(car, dtype=np.float64)
 
 
 class LeastSquaresEstimator:
@@ -72,16 +83,27 @@ class LeastSquaresEstimator:
         on the seat acceleration and both regressors before the fit; the filter's edges are dropped.
         The defaults, 4-20 Hz and 151 taps at dt = 5 ms, keep the seat resonance and drop the drift of
         integrated noise (docs/baselines.md: how they were chosen).
+    unknown "p": both p1 and p2 fitted; "m3": C3 and K3 known (``c3``, ``k3``, the car's), only m3 fitted,
+        so p = (C3, K3) / m3 is one parameter (the paper's own premise).
     """
 
     trainable = False  # train() evaluates it directly, without Lightning
 
     def __init__(self, span: str = "window", filter: str = "none", low_hz: float = 4.0, high_hz: float = 20.0,
-                 taps: int = 151, dt: float = 0.005):
+                 taps: int = 151, dt: float = 0.005, unknown: str = "p", c3: float | None = None,
+                 k3: float | None = None):
         if span not in SPANS:
             raise ValueError(f"model.net.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
         if filter not in FILTERS:
             raise ValueError(f"model.net.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
+        if unknown not in UNKNOWNS:
+            raise ValueError(f"model.net.unknown = {format_value(unknown)} is not allowed: "
+                             f"one of {', '.join(UNKNOWNS)}")
+        for key, value in (("c3", c3), ("k3", k3)):
+            if unknown == "m3" and not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                raise ValueError(f"model.net.{key} = {format_value(value)} is not allowed: must be finite and > 0 "
+                                 "with unknown = m3 (the car's constant, ${car." + key + "})")
+        self.car = (float(c3), float(k3)) if unknown == "m3" else None
         check_bandpass(low_hz, high_hz, taps, dt)  # checked even when unused, so a typo never waits
         self.span, self.filter = span, filter
         self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
@@ -112,7 +134,7 @@ class LeastSquaresEstimator:
     def _windows(self, dm, split, noise_std, limit, windows):
         batch = dm.eval_batch(split, noise_std, limit, windows=windows)
         seat = batch["signals"][:, 0].numpy()
-        p = fit_p(seat, batch["rel_vel"].numpy(), batch["rel_disp"].numpy(), self.fir)
+        p = fit_p(seat, batch["rel_vel"].numpy(), batch["rel_disp"].numpy(), self.fir, self.car)
         # the batch holds each recording's K windows in a row (data module); mean over them as for a network
         pred = p.reshape(-1, windows, 2).mean(axis=1)
         true = batch["params"].numpy().astype(np.float64).reshape(-1, windows, 2)[:, 0]
@@ -132,7 +154,7 @@ class LeastSquaresEstimator:
                 noise = noise_std * rng.standard_normal((len(r), 2, seat.shape[1]))
                 seat, body = seat + noise[:, 0], body + noise[:, 1]
             rel_vel, rel_disp = relative_states(seat, body, ds.spec.dt, ds.spec.measurement)
-            preds.append(fit_p(seat, rel_vel, rel_disp, self.fir))
+            preds.append(fit_p(seat, rel_vel, rel_disp, self.fir, self.car))
         # float32 truth like the network's batches, so both kinds of run score against identical labels
         true = ds.params[rows].astype(np.float32).astype(np.float64)
         return np.concatenate(preds) if preds else np.zeros((0, 2)), true

@@ -2,7 +2,8 @@
 
 pred: (B, 2) predicted (p1, p2) in physical units. batch: the data module's dict, "signals" (B, 2, W) with
 seat z'' in channel 0, "params" (B, 2) true p, "rel_vel" / "rel_disp" (B, W) seat-minus-body relative states
-re-integrated from t0 over the whole recording and cropped to the window.
+re-integrated from t0 over the whole recording and cropped to the window (or from the window's start, with
+data.integration=window); with a filter, "seat_f", "rel_vel_f", "rel_disp_f": the three through the band-pass.
 """
 
 from __future__ import annotations
@@ -10,12 +11,49 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
+import numpy as np
 import torch
 from torch import nn
 
 from hybrid_sysid.model.checks import check_pair
+from hybrid_sysid.physics import relative_states
+from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 
 _NORMS = ("l1", "l2")
+WEIGHTINGS = ("none", "eiv")
+FILTER_KEYS = ("low_hz", "high_hz", "taps")
+
+
+def filter_taps(filter: dict, dt: float) -> np.ndarray:
+    """The band-pass of ``objective.filter`` ({low_hz, high_hz, taps}) at the data's dt: the baseline's FIR."""
+    unknown = sorted(set(filter) - set(FILTER_KEYS))
+    if unknown:
+        raise ValueError(f"objective.filter.{unknown[0]} is not allowed: the keys are {', '.join(FILTER_KEYS)}")
+    missing = [k for k in FILTER_KEYS if k not in filter]
+    if missing:
+        raise ValueError(f"objective.filter.{missing[0]} is missing: give {', '.join(FILTER_KEYS)}")
+    check_bandpass(filter["low_hz"], filter["high_hz"], filter["taps"], dt, prefix="objective.filter")
+    return bandpass_taps(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
+
+
+def noise_gram(fir: np.ndarray, dt: float, measurement: str) -> np.ndarray:
+    """(3, 3) G with Var(filtered residual) = sigma^2 (1, p1, p2) G (1, p1, p2)^T under white noise of std sigma
+    on both channels, the residual being seat_f + p1 rel_vel_f + p2 rel_disp_f.
+
+    Summed over the two channels: the outer products of the filtered responses of (seat, rel_vel, rel_disp) to
+    one unit impulse of that channel. Integration turns the impulse into a step and a ramp; a band-pass of zero
+    DC and zero ramp gain (symmetric, sum 0) ends both, so every response is finite.
+    """
+    taps = len(fir)
+    n = 3 * taps
+    gram = np.zeros((3, 3))
+    for channel in (0, 1):
+        acc = np.zeros((2, n))
+        acc[channel, taps] = 1.0
+        vel, disp = relative_states(acc[0], acc[1], dt, measurement)
+        rows = np.stack([np.convolve(v, fir, mode="valid") for v in (acc[0], vel, disp)])
+        gram += rows @ rows.T
+    return gram
 
 
 class LabelledObjective(nn.Module):
@@ -49,21 +87,58 @@ class HybridObjective(nn.Module):
     mean squared seat acceleration, i.e. the loss becomes 1 - R^2-like and scale-free. Without it a class E
     window (16x the road amplitude of class A, 256x the squared error) would outweigh class A windows by
     orders of magnitude and the network would learn only from rough roads. ``eps`` guards all-zero windows.
+
+    ``filter`` ({low_hz, high_hz, taps}, the band-pass of the least-squares baseline; needs the data's ``dt``):
+    the residual of the three signals through that zero-phase band-pass (the batch's "seat_f", "rel_vel_f",
+    "rel_disp_f", built by the data module). The seat equation is linear and time invariant, so it holds for
+    the filtered signals exactly, while the filter drops the drift of integrated sensor noise below the band
+    and the white noise above it, and with them the unknown states at the window's start.
+
+    ``weighting="eiv"`` (needs ``filter``; errors in variables): the mean squared residual divided by
+    (1, p1, p2) G (1, p1, p2)^T (``noise_gram``), the variance per unit noise variance that white sensor noise
+    gives the filtered residual at this p. Noise in the regressors adds sigma^2 times that term to the expected
+    squared residual, which pulls the plain fit towards p of little noise gain (attenuation bias); after the
+    division the expectation is misfit / g(p) + sigma^2, least at the true p whatever sigma, so no noise level
+    is needed (the total-least-squares idea).
     """
 
     uses_labels = False  # model selection then stays label-free too (trainer.monitor=auto picks val/loss)
 
-    def __init__(self, normalize: bool = True, eps: float = 1e-12):
+    def __init__(self, normalize: bool = True, eps: float = 1e-12, filter: dict | None = None,
+                 weighting: str = "none", dt: float | None = None, measurement: str = "consistent"):
         super().__init__()
         if not (math.isfinite(eps) and eps >= 0):
             raise ValueError(f"eps = {eps} is invalid; it must be finite and >= 0")
+        if weighting not in WEIGHTINGS:
+            raise ValueError(f"objective.weighting = {weighting!r} is not allowed: one of {', '.join(WEIGHTINGS)}")
+        if weighting == "eiv" and filter is None:
+            raise ValueError("objective.weighting = 'eiv' is not allowed without objective.filter "
+                             "(unfiltered, integrated noise has no finite variance)")
         self.normalize = bool(normalize)
         self.eps = float(eps)
+        self.filter, self.weighting = (dict(filter) if filter is not None else None), weighting
+        self.keys = ("seat_f", "rel_vel_f", "rel_disp_f") if filter is not None else ("rel_vel", "rel_disp")
+        if filter is not None:
+            if dt is None:
+                raise ValueError("objective.dt is missing: a filtered objective needs the data's step (${data.dt})")
+            fir = filter_taps(self.filter, dt)
+            if weighting == "eiv":
+                self.register_buffer("gram", torch.tensor(noise_gram(fir, dt, measurement), dtype=torch.float32))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
-        seat = batch["signals"][:, 0].to(pred)
-        z_rec = -pred[:, :1] * batch["rel_vel"].to(pred) - pred[:, 1:2] * batch["rel_disp"].to(pred)
+        if self.filter is not None:
+            if "seat_f" not in batch:
+                raise KeyError("objective.filter is set but the batch has no filtered signals: build the data "
+                               "module with the objective's filter (hybrid_sysid.train.build_datamodule does)")
+            seat, rel_vel, rel_disp = (batch[k].to(pred) for k in self.keys)
+        else:
+            seat = batch["signals"][:, 0].to(pred)
+            rel_vel, rel_disp = (batch[k].to(pred) for k in self.keys)
+        z_rec = -pred[:, :1] * rel_vel - pred[:, 1:2] * rel_disp
         mse = (seat - z_rec).pow(2).mean(dim=1)
+        if self.weighting == "eiv":
+            p = torch.cat([torch.ones_like(pred[:, :1]), pred], dim=1)
+            mse = mse / torch.einsum("bi,ij,bj->b", p, self.gram, p)
         if self.normalize:
             mse = mse / (seat.pow(2).mean(dim=1) + self.eps)
         return mse.mean()
@@ -73,7 +148,8 @@ class CombinedObjective(nn.Module):
     """labelled_weight * J_L + hybrid_weight * J_U; other keyword arguments go to the two objectives."""
 
     def __init__(self, p_scale: Sequence[float], labelled_weight: float = 1.0, hybrid_weight: float = 1.0,
-                 norm: str = "l1", normalize: bool = True, eps: float = 1e-12):
+                 norm: str = "l1", normalize: bool = True, eps: float = 1e-12, filter: dict | None = None,
+                 weighting: str = "none", dt: float | None = None, measurement: str = "consistent"):
         super().__init__()
         for name, w in (("labelled_weight", labelled_weight), ("hybrid_weight", hybrid_weight)):
             if not (math.isfinite(w) and w >= 0):
@@ -83,7 +159,8 @@ class CombinedObjective(nn.Module):
                              f"(got {labelled_weight}, {hybrid_weight}); allowed: >= 0 with a positive sum")
         self.labelled_weight, self.hybrid_weight = float(labelled_weight), float(hybrid_weight)
         self.labelled = LabelledObjective(p_scale=p_scale, norm=norm)
-        self.hybrid = HybridObjective(normalize=normalize, eps=eps)
+        self.hybrid = HybridObjective(normalize=normalize, eps=eps, filter=filter, weighting=weighting, dt=dt,
+                                      measurement=measurement)
         # with labelled_weight 0 the combination is label-free, and model selection must stay so too
         self.uses_labels = self.labelled_weight > 0
 
