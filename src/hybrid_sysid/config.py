@@ -7,6 +7,7 @@ naming the key, the value and what is allowed.
 
 from __future__ import annotations
 
+import importlib.util
 import math
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -103,6 +104,8 @@ class Config:
     objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
     trainer: TrainerConfig = MISSING
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    # experiment trackers: name -> a Lightning logger's _target_ and arguments (conf/logger; {} for none)
+    logger: Dict[str, Any] = field(default_factory=dict)
     # the car's constants (QuarterCar's fields, its values by default), e.g. car.c3=700
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
 
@@ -196,12 +199,29 @@ def validate(cfg: DictConfig) -> None:
         _bad("evaluation.windows", windows, f"a non-empty list of integers K in [1, data.n_steps - data.window + 1 "
              f"= {n_starts}] (windows per recording)")
     _validate_baseline(cfg)
+    validate_loggers(cfg)
     obj = cfg.objective
     if "labelled_weight" in obj or "hybrid_weight" in obj:
         lw, hw = obj.get("labelled_weight", 0.0), obj.get("hybrid_weight", 0.0)
         if lw < 0 or hw < 0 or lw + hw == 0:
             _bad("objective.labelled_weight / objective.hybrid_weight", [lw, hw],
                  "both must be >= 0 and not both zero")
+
+
+# a logger class -> the modules it can run on (any one of them); they come with the "loggers" extra
+LOGGER_MODULES = {"TensorBoardLogger": ("tensorboard", "tensorboardX"), "MLFlowLogger": ("mlflow",)}
+LOGGERS_EXTRA = 'pip install -e ".[loggers]"'
+
+
+def validate_loggers(cfg: DictConfig) -> None:
+    """Each configured logger names a class, and the library it needs is installed."""
+    for name, lg in (cfg.get("logger") or {}).items():
+        target = str(lg.get("_target_", "")) if isinstance(lg, DictConfig) else ""
+        if not target:
+            _bad(f"logger.{name}", lg, "a mapping with the _target_ of a Lightning logger (see conf/logger)")
+        needs = next((mods for cls, mods in LOGGER_MODULES.items() if target.endswith("." + cls)), ())
+        if needs and not any(importlib.util.find_spec(m) for m in needs):
+            raise ConfigError(f"logger.{name} needs the {needs[0]} package, which is not installed: {LOGGERS_EXTRA}")
 
 
 def _validate_baseline(cfg: DictConfig) -> None:
