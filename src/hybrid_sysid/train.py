@@ -22,7 +22,7 @@ from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, TrainingClock
 from hybrid_sysid.config import dataset_spec, validate
 from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.model.metrics import summarise
-from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.model.module import LOG_EVERY, ParameterEstimator
 from hybrid_sysid.records import RECORD, run_record, write_json_atomic
 from hybrid_sysid.tracking import build_loggers, finish, hyperparameters
 
@@ -60,9 +60,8 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
         accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=list(loggers) or False,
         callbacks=callbacks, enable_progress_bar=t.progress_bar, enable_model_summary=False,
-        num_sanity_val_steps=0, default_root_dir=str(run_dir))
-    if loggers:  # the module logs the training loss every LOG_EVERY steps itself: let each one through
-        kwargs["log_every_n_steps"] = 1
+        num_sanity_val_steps=0, default_root_dir=str(run_dir),
+        log_every_n_steps=LOG_EVERY)  # the steps on which the module logs its training loss
     kwargs.update(t.get("extra", {}))
     kwargs.update(overrides)
     return L.Trainer(**kwargs)

@@ -51,7 +51,8 @@ class ParameterEstimator(L.LightningModule):
                                      "lower model.optim.lr or check the data")
         # a self.log call costs about 1.8 ms (benchmarks/README.md, training throughput), near a tenth of a
         # fast_cnn step: the progress bar's loss follows Lightning's own default logging interval instead
-        if self.global_step % LOG_EVERY == 0:
+        # (on the steps where the Trainer's log_every_n_steps = LOG_EVERY passes it on to the loggers)
+        if (self.global_step + 1) % LOG_EVERY == 0:
             self.log("train/loss", loss.detach(), prog_bar=True, batch_size=len(batch["signals"]))
         return loss
 
