@@ -5,7 +5,8 @@ so a sweep goes on and its summary lists the failed job.
 
 Under a hyperparameter search (hydra-optuna-sweeper, conf/hparams_search) a job returns one number: the
 validation figure its model selection used (``best_score`` of its record: val/loss for a label-free objective,
-val/rel_dev otherwise; trainer.monitor), NaN for a failed job, which the study records as a failed trial.
+val/rel_dev otherwise; trainer.monitor). A failed job returns None, which the sweeper cannot cast to a number:
+it records a failed trial and the study goes on (a NaN would stop the whole study in optuna's ``tell``).
 """
 
 from __future__ import annotations
@@ -55,14 +56,14 @@ def _installed(module: str) -> bool:
         return False
 
 
-def search_value(record: dict) -> float:
-    """What a job returns to a hyperparameter search: its model-selection figure, NaN if it has none."""
+def search_value(record: dict) -> float | None:
+    """What a job returns to a hyperparameter search: its model-selection figure, None if it has none."""
     value = record.get("best_score")
-    return float("nan") if value is None else float(value)
+    return None if value is None else float(value)
 
 
 @hydra.main(version_base="1.3", config_path=config.CONF_DIR, config_name="config")
-def hydra_main(cfg: DictConfig) -> dict | float:
+def hydra_main(cfg: DictConfig) -> dict | float | None:
     global _task_started
     _task_started = True
     hc = HydraConfig.get()
@@ -88,7 +89,7 @@ def hydra_main(cfg: DictConfig) -> dict | float:
         write_json_atomic(run_dir / RECORD, run_record("failed", overrides, cfg.get("seed", 0), error=error))
         if multirun:  # let the other jobs run; the sweep summary exits non-zero
             log.error("job failed: %s", error)
-            return float("nan") if searching else {"status": "failed", "error": error}
+            return None if searching else {"status": "failed", "error": error}
         if isinstance(exc, ConfigError) and os.environ.get("HYDRA_FULL_ERROR") != "1":
             print(f"error: {exc}", file=sys.stderr)
             sys.exit(2)  # a bad value: one line, no traceback
