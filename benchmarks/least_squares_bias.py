@@ -9,13 +9,17 @@ Reference: numpy's lstsq in float64.
 
 import numpy as np
 
-from hybrid_sysid.physics import QuarterCar, relative_states, road_profiles, simulate
+from hybrid_sysid.physics import (QuarterCar, continuous_recordings, relative_states, road_amplitudes, road_phases,
+                                  road_profiles, simulate, wave_numbers)
 
 CAR = QuarterCar()
 SCHEMES = {  # name: (recording, pairing of velocities in the seat equation)
     "paper (eq. 12 recording, eq. 21 pairing)": ("paper", "paper"),
     "consistent recording, eq. 21 pairing z'_k - y'_k": ("consistent", "paper"),
     "consistent (recording + pairing z'_k - y'_{k+1})": ("consistent", "consistent"),
+    "continuous recording (exact samples), symplectic Euler + pairing z'_k - y'_{k+1}": ("continuous",
+                                                                                        "consistent"),
+    "continuous recording, trapezoid rule (data.measurement=continuous)": ("continuous", "continuous"),
 }
 
 
@@ -23,7 +27,13 @@ def worst_error(recording, pairing, road_class, dt):
     n = int(round(6.0 / dt))
     road = road_profiles([road_class] * 2, n, dt, 15.0, rng="ABCDE".index(road_class))
     masses = np.array([[50.0, 100.0, 150.0, 200.0]] * 2)
-    seat, body = simulate(road[:, None, :], masses, dt, measurement=recording)
+    if recording == "continuous":  # the same roads' phases, solved exactly between samples
+        phases = road_phases(2, 300, np.random.default_rng("ABCDE".index(road_class)))
+        seat, body = continuous_recordings(road_amplitudes([road_class] * 2), phases, wave_numbers(300) * 15.0,
+                                           np.repeat([0, 1], 4), masses.ravel(), n, dt)
+        seat, body = seat.reshape(2, 4, n), body.reshape(2, 4, n)
+    else:
+        seat, body = simulate(road[:, None, :], masses, dt, measurement=recording)
     rel_vel, rel_disp = relative_states(seat, body, dt, pairing)
     worst = np.zeros(2)
     for i, j in np.ndindex(masses.shape):

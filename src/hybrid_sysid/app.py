@@ -79,6 +79,10 @@ def hydra_main(cfg: DictConfig) -> dict | float | None:
         from hybrid_sysid.report.run_figures import write_run_figures
         from hybrid_sysid.train import train
 
+        if cfg.get("transfer"):  # experiment=transfer: a chain of runs in this job's directory
+            from hybrid_sysid.transfer import run_chain
+
+            return run_chain(cfg, run_dir, overrides)
         record = train(cfg, run_dir, overrides, experiment=experiment, run_name=run_name)
         if record.get("rank", 0) == 0:  # with DDP, rank 0 alone has the record
             write_run_figures(run_dir)

@@ -38,6 +38,7 @@ class DataConfig:
     m3_min: int = 50
     m3_max: int = 200
     measurement: str = DEFAULT_MEASUREMENT
+    seat_spread: float = 0.0
     window: int = 500
     train_fraction: float = 0.8
     val_fraction: float = 0.125
@@ -97,6 +98,7 @@ class EvaluationConfig:
 class Config:
     seed: int = 0
     resume: Optional[str] = None
+    init_from: Optional[str] = None  # a run directory: start from its best weights
     data: DataConfig = MISSING
     road: RoadConfig = MISSING
     noise: NoiseConfig = MISSING
@@ -106,17 +108,30 @@ class Config:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     # experiment trackers: name -> a Lightning logger's _target_ and arguments (conf/logger; {} for none)
     logger: Dict[str, Any] = field(default_factory=dict)
-    # the car's constants (QuarterCar's fields, its values by default), e.g. car.c3=700
+    # the car's constants (QuarterCar's fields; the group conf/car, car=paper by default), e.g. car.c3=700
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
+    # experiment=transfer: a job is a chain of runs (hybrid_sysid.transfer); null for one run
+    transfer: Optional[Dict[str, Any]] = None
+
+
+@dataclass
+class EvalConfig(Config):
+    """hybrid-sysid-eval's config (conf/eval.yaml): the training config's groups, to compose overrides, and the
+    run to evaluate."""
+
+    run: str = MISSING
 
 
 def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
     """``${p_prior:min}``, ``${p_prior:max}`` or ``${p_prior:scale}`` in the model and objective configs: the
-    prior range of p = (C3, K3) / m3 for the config's car and seat masses, from p_min = (C3, K3) / data.m3_max to
-    p_max = (C3, K3) / data.m3_min, or its midpoint (the label scale). Derived here, once, so an override of the
-    car or of the mass range moves the networks' bounds and the labelled objective's scale with the data."""
+    prior range of p = (C3, K3) / m3 for the config's car and seat masses, from p_min = (C3, K3) (1 - s) /
+    data.m3_max to p_max = (C3, K3) (1 + s) / data.m3_min (s: data.seat_spread, 0 for the paper's data), or its
+    midpoint (the label scale). Derived here, once, so an override of the car, of the mass range or of the seat
+    spread moves the networks' bounds and the labelled objective's scale with the data."""
     spec = dataset_spec(_root_)
-    p_min, p_max = spec.car.parameters(spec.m3_max), spec.car.parameters(spec.m3_min)
+    s = spec.seat_spread
+    p_min = [p * (1 - s) for p in spec.car.parameters(spec.m3_max)]
+    p_max = [p * (1 + s) for p in spec.car.parameters(spec.m3_min)]
     pairs = {"min": p_min, "max": p_max, "scale": [(a + b) / 2 for a, b in zip(p_min, p_max)]}
     if which not in pairs:
         _bad("p_prior", which, f"one of {', '.join(pairs)}")
@@ -127,6 +142,7 @@ def register() -> None:
     """The schema for Hydra and two resolvers: ``p_prior`` (above), and ``first_set`` for the run directory
     (hydra.run.dir is ``resume`` when given, else a new time-stamped directory)."""
     ConfigStore.instance().store(name="schema", node=Config)
+    ConfigStore.instance().store(name="eval_schema", node=EvalConfig)
     OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
     OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)
 
@@ -137,7 +153,7 @@ def dataset_spec(cfg: DictConfig) -> DatasetSpec:
     return DatasetSpec(n_roads=d.n_roads, n_masses=d.n_masses, n_steps=d.n_steps, dt=d.dt, speed=d.speed,
                        n_waves=d.n_waves, amplitude=d.amplitude, road_classes=tuple(cfg.road.classes),
                        m3_min=d.m3_min, m3_max=d.m3_max, measurement=d.measurement, seed=d.seed,
-                       car=QuarterCar(**cfg.get("car", {})))
+                       car=QuarterCar(**cfg.get("car", {})), seat_spread=d.get("seat_spread", 0.0))
 
 
 CAR_FIELDS = tuple(asdict(QuarterCar()))

@@ -14,6 +14,13 @@ def write_json_atomic(path: Path, payload: dict) -> None:
     write_atomic(path, lambda tmp: tmp.write_text(json.dumps(payload, indent=2) + "\n"))
 
 
+def write_yaml_atomic(path: Path, payload) -> None:
+    import yaml
+
+    path.parent.mkdir(parents=True, exist_ok=True)
+    write_atomic(path, lambda tmp: tmp.write_text(yaml.safe_dump(payload, sort_keys=False)))
+
+
 def run_record(status: str, overrides: list[str], seed: int, steps: int = 0, train_seconds: float = 0.0,
                results: list[dict] | None = None, error: str | None = None, **extra) -> dict:
     return {"status": status, "error": error, "overrides": list(overrides), "seed": seed, "steps": steps,

@@ -15,11 +15,11 @@ import lightning as L
 import pandas as pd
 import torch
 from hydra.utils import instantiate
-from omegaconf import DictConfig
+from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.baselines import is_baseline
 from hybrid_sysid.callbacks import CURVE_COLUMNS, LearningCurves, TrainingClock
-from hybrid_sysid.config import dataset_spec, validate
+from hybrid_sysid.config import ConfigError, dataset_spec, validate
 from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.model.module import LOG_EVERY, ParameterEstimator
@@ -125,6 +125,46 @@ def previous_record(run_dir: Path, overrides) -> dict | None:
     return record
 
 
+def best_checkpoint(run_dir: Path, key: str) -> Path:
+    """checkpoints/best.ckpt of a trained run (last.ckpt when it never validated); ConfigError naming ``key``
+    otherwise."""
+    for name in ("best.ckpt", "last.ckpt"):
+        if (run_dir / "checkpoints" / name).is_file():
+            return run_dir / "checkpoints" / name
+    raise ConfigError(f"{key} = {str(run_dir)!r} is not allowed: it holds no checkpoints/best.ckpt or last.ckpt "
+                      "(a run directory of hybrid-sysid that trained a network)")
+
+
+def saved_config(run_dir: Path, key: str) -> DictConfig:
+    """The composed config a run saved (.hydra/config.yaml); ConfigError naming ``key`` when it has none."""
+    path = run_dir / ".hydra" / "config.yaml"
+    if not path.is_file():
+        raise ConfigError(f"{key} = {str(run_dir)!r} is not allowed: it has no .hydra/config.yaml (a run "
+                          "directory written by hybrid-sysid)")
+    return OmegaConf.load(path)
+
+
+# the prior of p is derived from the data (${p_prior:...}), not part of the architecture
+PRIOR_KEYS = ("p_min", "p_max", "p_scale")
+
+
+def load_network(model: ParameterEstimator, cfg: DictConfig, run_dir: Path, key: str) -> Path:
+    """Put the best weights of the run in ``run_dir`` into ``model.net``; the whole network state comes with them
+    (batch-norm statistics, and the output bounds the source run was trained with). A network of another
+    architecture (class or any argument besides the prior of p) is a ConfigError naming ``key``."""
+    source = saved_config(run_dir, key)
+    mine = {k: v for k, v in OmegaConf.to_container(cfg.model.net).items() if k not in PRIOR_KEYS}
+    theirs = {k: v for k, v in OmegaConf.to_container(source.model.net).items() if k not in PRIOR_KEYS}
+    if mine != theirs:
+        diff = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
+        raise ConfigError(f"{key} = {str(run_dir)!r} is not allowed: its network differs from model.net in "
+                          + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff))
+    path = best_checkpoint(run_dir, key)
+    state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
+    model.net.load_state_dict({k[len("net."):]: v for k, v in state.items() if k.startswith("net.")})
+    return path
+
+
 def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | None = None,
           run_name: str | None = None) -> dict:
     """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/.
@@ -134,6 +174,14 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | 
     and the other ranks return {"status": "completed", "rank": r} without a record."""
     validate(cfg)  # every range check before any work
     run_dir = Path(run_dir)
+    init = cfg.get("init_from")
+    if init and is_baseline(cfg.model.net._target_):
+        raise ConfigError(f"init_from = {init!r} is not allowed with a baseline (model.net._target_ = "
+                          f"{cfg.model.net._target_}): it has no weights to start from")
+    model = None
+    if init:  # before any directory is made or data simulated: a network that does not fit fails here
+        model = build_model(cfg)
+        log.info("starting from the weights of %s", load_network(model, cfg, Path(init), "init_from"))
     done = previous_record(run_dir, overrides)
     if done is not None:
         log.info("run %s already completed; not training it again", run_dir)
@@ -152,7 +200,7 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | 
         logger.log_hyperparams(hyperparameters(cfg))
     if is_baseline(cfg.model.net._target_):
         return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows, loggers)
-    model = build_model(cfg)
+    model = model if model is not None else build_model(cfg)
     monitor = monitor_of(cfg, model.objective)
 
     ckpt = L.pytorch.callbacks.ModelCheckpoint(dirpath=run_dir / "checkpoints", filename="best", monitor=monitor,
@@ -180,7 +228,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | 
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
                         results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
                         best_score=None if ckpt.best_model_score is None else float(ckpt.best_model_score),
-                        devices=trainer.world_size, fit_seconds=round(fit_seconds, 2))
+                        devices=trainer.world_size, fit_seconds=round(fit_seconds, 2),
+                        **({"init_from": str(init)} if init else {}))
     write_json_atomic(run_dir / RECORD, record)
     finish(loggers, results, trainer.global_step)
     log.info("run %s: %d steps in %.1f s\n%s", run_dir, trainer.global_step, train_seconds, console_table(results))
@@ -203,4 +252,32 @@ def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, n
     finish(loggers, results, 0)
     log.info("run %s: baseline %s, fits in %.2f s\n%s", run_dir, cfg.model.net._target_, estimator.fit_seconds,
              console_table(results))
+    return record
+
+
+def evaluate_run(cfg: DictConfig, source: str | Path, run_dir: str | Path, overrides=()) -> dict:
+    """Evaluate the best checkpoint of the trained run ``source`` on the data of ``cfg`` (its saved config with
+    other data, car, road, noise or evaluation: hybrid_sysid.evaluate), without training; write the record
+    (naming the source run), predictions.csv and an empty curves.csv into ``run_dir``."""
+    validate(cfg)
+    source, run_dir = Path(source), Path(run_dir)
+    if is_baseline(cfg.model.net._target_):
+        raise ConfigError(f"run = {str(source)!r} is not allowed: a baseline run (model.net._target_ = "
+                          f"{cfg.model.net._target_}) has no trained network to evaluate")
+    model = build_model(cfg)
+    checkpoint = load_network(model, cfg, source, "run")
+    run_dir.mkdir(parents=True, exist_ok=True)
+    if cfg.trainer.get("threads"):
+        torch.set_num_threads(int(cfg.trainer.threads))
+    dm = build_datamodule(cfg)
+    dm.setup()
+    noise_levels = [float(s) for s in cfg.noise.eval_std]
+    results, predictions = evaluate(model, dm, noise_levels, [int(k) for k in cfg.evaluation.windows])
+    write_outputs(run_dir, predictions, pd.DataFrame(columns=CURVE_COLUMNS))
+    source_record = source / RECORD
+    steps = json.loads(source_record.read_text()).get("steps", 0) if source_record.is_file() else 0
+    record = run_record("completed", overrides, cfg.seed, steps=steps, results=results, source_run=str(source),
+                        checkpoint=checkpoint.name)
+    write_json_atomic(run_dir / RECORD, record)
+    log.info("run %s evaluated on %s\n%s", source, run_dir, console_table(results))
     return record

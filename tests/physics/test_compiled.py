@@ -53,3 +53,17 @@ def test_the_physics_package_does_not_load_the_compiler():
     code = "import sys, hybrid_sysid.physics; print(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules))"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert loaded.strip() == "[]"
+
+
+@pytest.mark.parametrize("measurement", ["paper", "consistent"])
+def test_per_recording_seat_constants_reach_the_seat_and_the_body(measurement):
+    # C3 and K3 act on the seat (eq. 7) and on the body (eq. 8): each recording as the numpy simulator of a car
+    # with that recording's seat alone
+    roads = road_profiles(list("BD"), 250, 0.005, 15.0, rng=5)
+    road_of, m3 = [0, 1, 1], [70.0, 120.0, 180.0]
+    c3, k3 = np.array([500.0, 615.0, 760.0]), np.array([75000.0, 120000.0, 98935.0])
+    got = simulate_recordings(roads, road_of, m3, 0.005, QuarterCar(), measurement, c3=c3, k3=k3)
+    for i in range(3):
+        seat, body = simulate(roads[road_of[i]], m3[i], 0.005, QuarterCar(c3=c3[i], k3=k3[i]), measurement)
+        np.testing.assert_array_equal(got[0][i], seat.astype(np.float32))
+        np.testing.assert_array_equal(got[1][i], body.astype(np.float32))

@@ -18,14 +18,15 @@ import numpy as np
 from filelock import FileLock
 
 from hybrid_sysid.files import write_atomic
-from hybrid_sysid.physics import (DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, QuarterCar, road_profiles,
-                                  stable_dt_limit)
+from hybrid_sysid.physics import (DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED, QuarterCar,
+                                  continuous_recordings, relative_states, road_amplitudes, road_phases,
+                                  road_profiles, stable_dt_limit, wave_numbers)
 from hybrid_sysid.physics.compiled import simulate_recordings
 
 log = logging.getLogger(__name__)
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
-SIMULATOR_VERSION = 2  # 2: relative states integrated from seat - body (fewer cancelled digits)
+SIMULATOR_VERSION = 3  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording
 CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
 
 
@@ -46,6 +47,7 @@ class DatasetSpec:
     measurement: str = DEFAULT_MEASUREMENT
     seed: int = 0
     car: QuarterCar = field(default_factory=QuarterCar)
+    seat_spread: float = 0.0  # C3, K3 of each recording uniform in car.c3 * [1 - s, 1 + s], car.k3 * [1 - s, 1 + s]
 
     def validate(self, prefix: str = "data") -> None:
         """Raise ValueError naming the key, the value and what is allowed; called before any work."""
@@ -60,9 +62,14 @@ class DatasetSpec:
             bad(f"{prefix}.n_steps", self.n_steps, "must be >= 2")
         if not self.dt > 0:
             bad(f"{prefix}.dt", self.dt, "must be > 0 (seconds)")
-        limit = stable_dt_limit(self.car, self.m3_min, self.m3_max) if self.m3_min > 0 else None
-        if limit is not None and self.dt > limit:
-            bad(f"{prefix}.dt", self.dt, f"the semi-implicit Euler scheme is unstable above {limit:.4g} s")
+        if not 0 <= self.seat_spread < 1:
+            bad(f"{prefix}.seat_spread", self.seat_spread, "must lie in [0, 1) (a fraction of car.c3 and car.k3)")
+        if self.measurement in STEPPED and self.m3_min > 0:  # the continuous measurement takes no step
+            limit = stable_dt_limit(self.car, self.m3_min, self.m3_max, self.seat_spread)
+            if self.dt > limit:
+                spread = f", seat_spread {self.seat_spread:g}" if self.seat_spread else ""
+                bad(f"{prefix}.dt", self.dt, f"the semi-implicit Euler scheme is unstable above {limit:.4g} s for "
+                    f"this car ({self.car.describe()}; m3 in [{self.m3_min}, {self.m3_max}] kg{spread})")
         if not self.speed > 0:
             bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
         if self.n_waves < 2:
@@ -84,6 +91,8 @@ class DatasetSpec:
     def key(self) -> str:
         payload = asdict(self)
         payload["road_classes"] = list(self.road_classes)
+        if not self.seat_spread:  # the paper's data keep their key
+            payload.pop("seat_spread")
         payload["simulator_version"] = SIMULATOR_VERSION
         return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
 
@@ -99,6 +108,8 @@ class QCMDataset:
     rel_disp: np.ndarray
     params: np.ndarray  # (n, 2): p1 = C3 / m3, p2 = K3 / m3
     m3: np.ndarray  # (n,)
+    c3: np.ndarray  # (n,) the seat's damping and stiffness of each recording (the car's unless data.seat_spread)
+    k3: np.ndarray  # (n,)
     road_id: np.ndarray  # (n,)
     road_class: np.ndarray  # (n,) class letters
 
@@ -107,7 +118,7 @@ class QCMDataset:
 
     @property
     def nbytes(self) -> int:
-        return sum(getattr(self, n).nbytes for n in CHANNELS + ("params", "m3", "road_id", "road_class"))
+        return sum(getattr(self, n).nbytes for n in _ARRAYS)
 
 
 def generate_dataset(spec: DatasetSpec) -> QCMDataset:
@@ -119,17 +130,33 @@ def generate_dataset(spec: DatasetSpec) -> QCMDataset:
     spec.validate()
     rng = np.random.default_rng(spec.seed)
     classes = rng.choice(list(spec.road_classes), size=spec.n_roads)
-    masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float)
-    roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, spec.amplitude, rng)
-
+    masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float).ravel()
     road_id = np.repeat(np.arange(spec.n_roads), spec.n_masses)
+    if spec.measurement in STEPPED:
+        roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, spec.amplitude, rng)
+    else:  # the same draw of phases; the road stays analytic
+        phases = road_phases(spec.n_roads, spec.n_waves, rng)
+    c3, k3 = np.full(len(masses), spec.car.c3), np.full(len(masses), spec.car.k3)
+    if spec.seat_spread:  # drawn after the roads, so a spread of 0 leaves the paper's data as they were
+        s = spec.seat_spread
+        c3 = spec.car.c3 * rng.uniform(1 - s, 1 + s, size=len(masses))
+        k3 = spec.car.k3 * rng.uniform(1 - s, 1 + s, size=len(masses))
+
     # float64 physics ends here: the network and the objectives work in float32
-    channels = simulate_recordings(roads, road_id, masses.ravel(), spec.dt, spec.car, spec.measurement)
-    p1, p2 = spec.car.parameters(masses.ravel())
+    if spec.measurement in STEPPED:
+        channels = simulate_recordings(roads, road_id, masses, spec.dt, spec.car, spec.measurement, c3=c3, k3=k3)
+    else:
+        seat, body = continuous_recordings(road_amplitudes(classes, spec.n_waves, spec.amplitude), phases,
+                                           wave_numbers(spec.n_waves) * spec.speed, road_id, masses, spec.n_steps,
+                                           spec.dt, spec.car, c3=c3, k3=k3)
+        rel = relative_states(seat, body, spec.dt, spec.measurement)
+        channels = tuple(x.astype(np.float32) for x in (seat, body, *rel))
     return QCMDataset(
         spec=spec,
-        params=np.stack([p1, p2], axis=1),
-        m3=masses.ravel(),
+        params=np.stack([c3 / masses, k3 / masses], axis=1),
+        m3=masses,
+        c3=c3,
+        k3=k3,
         road_id=road_id,
         road_class=np.repeat(classes, spec.n_masses),
         **dict(zip(CHANNELS, channels)),
@@ -140,7 +167,7 @@ def cache_path(spec: DatasetSpec, cache_dir: str | os.PathLike) -> Path:
     return Path(cache_dir).expanduser() / f"qcm-{spec.key()}.npz"
 
 
-_ARRAYS = CHANNELS + ("params", "m3", "road_id", "road_class")
+_ARRAYS = CHANNELS + ("params", "m3", "c3", "k3", "road_id", "road_class")
 
 
 def _checksum(arrays: dict) -> str:

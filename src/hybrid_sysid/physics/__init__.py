@@ -3,27 +3,38 @@
 The compiled dataset kernel is ``hybrid_sysid.physics.compiled``, imported only by ``hybrid_sysid.data``.
 """
 
-from hybrid_sysid.physics.integrate import integrate, relative_states
+from hybrid_sysid.physics.exact import continuous_recordings, expm
+from hybrid_sysid.physics.integrate import integrate, integrate_trapezoid, relative_states
 from hybrid_sysid.physics.quarter_car import (
     DEFAULT_MEASUREMENT,
     MEASUREMENTS,
     Coefficients,
+    STEPPED,
     QuarterCar,
+    seat_car,
     simulate,
     stable_dt_limit,
     step,
 )
-from hybrid_sysid.physics.road import ROAD_CLASSES, road_profiles, wave_amplitudes, wave_numbers
+from hybrid_sysid.physics.road import (ROAD_CLASSES, road_amplitudes, road_phases, road_profiles, wave_amplitudes,
+                                      wave_numbers)
 
 __all__ = [
     "DEFAULT_MEASUREMENT",
     "MEASUREMENTS",
     "ROAD_CLASSES",
     "Coefficients",
+    "STEPPED",
     "QuarterCar",
+    "continuous_recordings",
+    "expm",
     "integrate",
+    "integrate_trapezoid",
     "relative_states",
+    "road_amplitudes",
+    "road_phases",
     "road_profiles",
+    "seat_car",
     "simulate",
     "stable_dt_limit",
     "step",

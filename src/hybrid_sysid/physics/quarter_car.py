@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import NamedTuple
 
 import numpy as np
@@ -10,7 +10,10 @@ import numpy as np
 # What a recording holds as the two sensors' accelerations: "paper" is eq. 12 from the states at step k,
 # "consistent" what the integrator applied. Re-integrating "paper" recordings does not give the simulated states
 # back, which biases the hybrid objective (docs/design.md, "The hybrid objective and the discretisation").
-MEASUREMENTS = ("paper", "consistent")
+# "continuous" samples the exact solution of eq. 10 every dt, as an accelerometer would (physics.exact): no
+# discrete scheme reproduces it, so it is the honest target for a network trained on simulated data.
+MEASUREMENTS = ("paper", "consistent", "continuous")
+STEPPED = ("paper", "consistent")  # the measurements recorded from the eq.-11 step
 DEFAULT_MEASUREMENT = "consistent"
 
 
@@ -54,6 +57,9 @@ class QuarterCar:
         if np.any(m3 <= 0):
             raise ValueError(f"m3 must be > 0 kg, got min {m3.min()}")
         return self.c3 / m3, self.k3 / m3
+
+    def describe(self) -> str:
+        return ", ".join(f"{k}={getattr(self, k):g}" for k in ("m1", "m2", "k1", "k2", "k3", "c2", "c3"))
 
     def coefficients(self) -> Coefficients:
         m1, m2 = self.m1, self.m2
@@ -103,6 +109,20 @@ def step(u, v, w, x, y, z, r, p1, p2, dt, c: Coefficients, consistent: bool):
     return u1, v1, w1, x + dt * u1, y + dt * v1, z + dt * w1, seat, body
 
 
+def seat_car(car: QuarterCar, n: int, c3=None, k3=None) -> QuarterCar:
+    """The car with per-recording seat constants: c3, k3 arrays of n values (None keeps the car's). A QuarterCar
+    whose c3, k3 are arrays gives per-recording parameters and coefficients (arithmetic broadcasts), which
+    ``simulate`` and ``step`` accept as they are."""
+    values = {}
+    for name, given in (("c3", c3), ("k3", k3)):
+        if given is not None:
+            given = np.asarray(given, dtype=float)
+            if given.shape != (n,) or not np.all(given > 0):
+                raise ValueError(f"{name} must hold {n} values > 0, one per recording; got shape {given.shape}")
+            values[name] = given
+    return replace(car, **values) if values else car
+
+
 def _step_matrix(car: QuarterCar, m3: float, dt: float) -> np.ndarray:
     """The linear map of one eq.-11 step on (u, v, w, x, y, z) with the road at 0: column j is the image of e_j."""
     p1, p2 = car.parameters(m3)
@@ -110,13 +130,20 @@ def _step_matrix(car: QuarterCar, m3: float, dt: float) -> np.ndarray:
     return np.array(step(*basis, 0.0, p1, p2, dt, car.coefficients(), True)[:6])
 
 
-def stable_dt_limit(car: QuarterCar = QuarterCar(), m3_min: float = 50.0, m3_max: float = 200.0) -> float:
-    """Largest dt (s) for which the semi-implicit Euler step is stable (spectral radius <= 1) for m3 in range.
+def stable_dt_limit(car: QuarterCar = QuarterCar(), m3_min: float = 50.0, m3_max: float = 200.0,
+                    seat_spread: float = 0.0) -> float:
+    """Largest dt (s) for which the semi-implicit Euler step is stable (spectral radius <= 1) for m3 in range
+    and, with ``seat_spread`` s, C3 and K3 anywhere in car.c3 * [1 - s, 1 + s] and car.k3 * [1 - s, 1 + s].
 
-    The lightest seat is the stiffest mode; both ends are checked. Found by bisection on the exact step map.
+    The lightest seat is the stiffest mode; every corner of the range is checked. Found by bisection on the exact
+    step map.
     """
+    ends = (1.0 - seat_spread, 1.0 + seat_spread) if seat_spread else (1.0,)
+    cars = [replace(car, c3=car.c3 * a, k3=car.k3 * b) for a in ends for b in ends]
+
     def stable(dt: float) -> bool:
-        return all(max(abs(np.linalg.eigvals(_step_matrix(car, m, dt)))) <= 1.0 + 1e-12 for m in (m3_min, m3_max))
+        return all(max(abs(np.linalg.eigvals(_step_matrix(c, m, dt)))) <= 1.0 + 1e-12
+                   for c in cars for m in (m3_min, m3_max))
 
     lo, hi = 1e-5, 1e-5
     while stable(hi) and hi < 10.0:
@@ -150,6 +177,9 @@ def simulate(
     (wheel, body, seat velocity) and "x", "y", "z" (positions), for checks against other solvers.
     """
     check_measurement(measurement)
+    if measurement not in STEPPED:
+        raise ValueError(f"measurement = {measurement!r}: simulate steps eq. 11 ({', '.join(STEPPED)}); "
+                         "continuous recordings come from physics.exact")
     if not dt > 0:
         raise ValueError(f"dt = {dt} must be > 0")
     road = np.asarray(road, dtype=float)

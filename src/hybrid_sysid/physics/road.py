@@ -54,6 +54,17 @@ def wave_amplitudes(road_class: str, n_waves: int = 300, amplitude: str = "paper
     return np.sqrt(phi * dw / np.pi) if amplitude == "paper" else np.sqrt(2.0 * phi * dw)
 
 
+def road_amplitudes(road_classes: Sequence[str], n_waves: int = 300, amplitude: str = "paper") -> np.ndarray:
+    """A_i of every road, (n_roads, n_waves), one road per class letter."""
+    classes = _check_classes(road_classes)
+    return np.stack([wave_amplitudes(c, n_waves, amplitude) for c in classes]) if classes else np.empty((0, n_waves))
+
+
+def road_phases(n_roads: int, n_waves: int, rng: np.random.Generator) -> np.ndarray:
+    """phi_i of every road, uniform on [0, 2 pi): (n_roads, n_waves), the draw ``road_profiles`` makes."""
+    return rng.uniform(0.0, 2.0 * np.pi, size=(n_roads, n_waves))
+
+
 def road_profiles(
     road_classes: Sequence[str],
     n_steps: int,
@@ -76,7 +87,7 @@ def road_profiles(
     if not speed > 0:
         raise ValueError(f"speed = {speed} must be > 0")
     rng = np.random.default_rng(rng)
-    phases = rng.uniform(0.0, 2.0 * np.pi, size=(len(classes), n_waves))
+    phases = road_phases(len(classes), n_waves, rng)
 
     base = wave_amplitudes("A", n_waves, amplitude)  # class A; each class step doubles the amplitude
     scale = np.array([2.0 ** (_CLASS_EXPONENT[c] / 2) for c in classes])

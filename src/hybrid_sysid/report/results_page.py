@@ -67,10 +67,13 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
             write_atomic(figures / f"{slug}.png",
                          lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
             lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
+            if "scenario" in table.index.names:  # experiment=transfer: the bars of its rows per scenario
+                write_atomic(figures / f"{slug}_bars.png", lambda p: sweep_figures.transfer_figure(table, p))
+                lines += [f"![transfer: {title}]({figures.name}/{slug}_bars.png)", ""]
         failed = failed_lines(df)
         if failed:
             lines += ["Failed jobs:", "", *failed, ""]
-        if reproduction:
+        if reproduction and "scenario" not in table.index.names:  # the paper reports the paper's car only
             lines += ["### The paper's figures beside ours", "", comparison_markdown(df, root), LEGEND, ""]
     text = "\n".join(lines).rstrip("\n") + "\n"
     file.parent.mkdir(parents=True, exist_ok=True)

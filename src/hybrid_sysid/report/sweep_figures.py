@@ -48,3 +48,32 @@ def learning_curves_compared(curves: pd.DataFrame, path: Path, metric: str = "me
     mean = sub[sub["noise_std"] == noise].groupby(["label", "parameter", "step"], as_index=False)[metric].mean()
     curves_figure(mean, path, f"learning curves: {split} split, noise {noise:g}, mean over seeds", y=metric,
                   ylabel=METRICS[metric])
+
+
+def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int = 1) -> None:
+    """experiment=transfer: one panel per scenario, one group of bars per row (source evaluated there, adapted,
+    hybrid from scratch, oracle), p1 and p2 side by side at one noise level and K; error bars: std over seeds.
+    ``table`` has the row levels scenario and row (and K when several were evaluated)."""
+    levels = list(table.index.names)
+    if "K" in levels:
+        table = table.xs(k, level="K")
+    params = [p for n, p, s in table.columns if s == "mean" and n == noise]
+    scenarios = list(dict.fromkeys(table.index.get_level_values("scenario")))
+    fig, axes = plt.subplots(1, len(scenarios), figsize=(3.6 * len(scenarios) + 1, 4.2), sharey=True,
+                             squeeze=False)
+    width = 0.8 / max(len(params), 1)
+    for ax, scenario in zip(axes[0], scenarios):
+        sub = table.xs(scenario, level="scenario")
+        x = range(len(sub))
+        for j, param in enumerate(params):
+            mean = 100 * sub[(noise, param, "mean")].astype(float).to_numpy()
+            err = 100 * sub[(noise, param, "std")].astype(float).fillna(0.0).to_numpy()
+            ax.bar([i + (j - (len(params) - 1) / 2) * width for i in x], mean, width, yerr=err, capsize=3,
+                   label=param)
+        ax.set_xticks(list(x), [str(r) for r in sub.index], rotation=30, ha="right", fontsize="small")
+        ax.set_xlim(-0.5, max(len(sub), 3) - 0.5)  # bars as wide in a one-row panel as in the others
+        ax.set(title=scenario, yscale="log")
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+    axes[0, 0].set_ylabel("mean relative deviation [%]")
+    axes[0, 0].legend(fontsize="small")
+    save_figure(fig, path, f"transfer: test split, noise std {noise:g}, K = {k}, mean ± std over seeds")

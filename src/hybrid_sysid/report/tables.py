@@ -5,7 +5,8 @@ booktabs).
 The spread over seeds is the sample standard deviation (ddof=1); the interval is the 95% Student t interval of
 the mean over seeds (scipy.stats.t; seeds are the independent repetitions, and with 3 of them it is wide). With a
 single seed neither is shown. The marks (the rule is printed under every table): in each column, among rows
-that differ only in the compared key (``objective`` when it is swept), the lowest mean is **bold**. Where a row
+that differ only in the compared key (``objective`` when it is swept, ``row`` in experiment=transfer's
+table), the lowest mean is **bold**. Where a row
 and the bold row share their test recordings and the per-recording predictions are at hand (``paired``), a row is
 marked † when a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) on the per-recording relative
 deviations, averaged over seeds, finds a difference at p < 0.05; otherwise when its gap to the bold row is larger
@@ -133,14 +134,15 @@ def cell_columns(table: pd.DataFrame) -> list[tuple]:
 
 def compared_level(table: pd.DataFrame, compare: str | None = None) -> str | None:
     """The index level whose values are compared: ``compare`` if given, else ``objective`` when it is a level,
-    else the first level that is not K. None for the single "all" row."""
+    else ``row`` (experiment=transfer's table) when it is one, else the first level that is not K. None for the single "all" row."""
     names = [str(n) for n in table.index.names]
     if compare is not None:
         if compare not in names:
             raise ValueError(f"compare={compare!r} is not a row key of the table; row keys: {names}")
         return compare
-    if "objective" in names:
-        return "objective"
+    for preferred in ("objective", "row"):  # "row": experiment=transfer's rows within a scenario
+        if preferred in names:
+            return preferred
     candidates = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
     return candidates[0] if candidates else None
 

@@ -1,0 +1,104 @@
+"""``hybrid-sysid experiment=transfer``: identification on a car the network was not trained on.
+
+One job per seed (the sweep runs them side by side) trains, in order, in its own directory:
+
+- ``source/``: the labelled objective on the config's car (the paper's), evaluated there;
+- for each target scenario (``transfer.scenarios``: another car preset, other data values):
+  ``<scenario>/source``: that network evaluated on the target's test roads, no training
+  (hybrid_sysid.train.evaluate_run, what hybrid-sysid-eval runs);
+  ``<scenario>/adapted``: that network, then ``transfer.adapt_steps`` steps of the hybrid objective on the
+  target's unlabelled training recordings (``init_from``; model selection by the label-free val/loss);
+  ``<scenario>/scratch``: the hybrid objective from random weights on the target;
+  ``<scenario>/oracle``: the labelled objective with the target's labels.
+
+Each sub-run writes an ordinary run record whose overrides are ``scenario=...`` and ``row=...``, so the sweep
+summary's table has one row per (scenario, row, K). A Hydra sweep cannot chain jobs that depend on each other;
+this module does, inside a job.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.config import CONF_DIR, ConfigError, validate
+from hybrid_sysid.records import write_yaml_atomic
+from hybrid_sysid.train import evaluate_run, train
+
+log = logging.getLogger("hybrid_sysid")
+# table rows, numbered so they sort in the order the scenario reads
+SOURCE, ADAPTED, SCRATCH, ORACLE = ("1 labelled, paper's car", "2 + hybrid adaptation", "3 hybrid from scratch",
+                                    "4 labelled oracle")
+SCENARIO_KEYS = ("car", "data")
+
+
+def group(name: str, choice: str) -> DictConfig:
+    """A config group's file (conf/<name>/<choice>.yaml) as a node; ConfigError naming the key if absent."""
+    path = Path(CONF_DIR) / name / f"{choice}.yaml"
+    if not path.is_file():
+        options = sorted(p.stem for p in path.parent.glob("*.yaml"))
+        raise ConfigError(f"transfer.scenarios: {name} = {choice!r} is not allowed: one of {', '.join(options)}")
+    return OmegaConf.load(path)
+
+
+def variant(cfg: DictConfig, objective: str, **changes) -> DictConfig:
+    """A copy of the config with another objective and the given dotted keys changed; no transfer block."""
+    out = OmegaConf.merge(cfg, {"transfer": None})
+    out.objective = group("objective", objective)
+    for key, value in changes.items():
+        OmegaConf.update(out, key.replace("__", "."), value, merge=False)
+    return out
+
+
+def target(cfg: DictConfig, name: str, scenario) -> DictConfig:
+    """The config on a scenario's target: ``car`` names a car preset (conf/car), ``data`` holds data values."""
+    unknown = sorted(set(scenario) - set(SCENARIO_KEYS))
+    if unknown:
+        raise ConfigError(f"transfer.scenarios.{name}.{unknown[0]} is not allowed: a scenario sets "
+                          f"{' and '.join(SCENARIO_KEYS)}")
+    out = OmegaConf.merge(cfg, {"data": scenario.get("data") or {}})
+    if scenario.get("car"):
+        out.car = group("car", scenario.car)
+    return out
+
+
+def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, list[str], Path | None]]:
+    """(kind, config, directory, overrides, source) of every sub-run in order; every config validated here,
+    before any work."""
+    t = cfg.transfer
+    source_dir = job_dir / "source"
+    runs = [("train", variant(cfg, "labelled"), source_dir, ["scenario=paper", f"row={SOURCE}"], None)]
+    for name, scenario in t.scenarios.items():
+        goal = target(cfg, name, scenario)
+        tag = [f"scenario={name}"]
+        runs += [
+            ("eval", variant(goal, "labelled"), job_dir / name / "source", tag + [f"row={SOURCE}"], source_dir),
+            ("train", variant(goal, "hybrid", init_from=str(source_dir), trainer__max_steps=t.adapt_steps,
+                              model__optim__lr=t.adapt_lr), job_dir / name / "adapted", tag + [f"row={ADAPTED}"],
+             None),
+            ("train", variant(goal, "hybrid"), job_dir / name / "scratch", tag + [f"row={SCRATCH}"], None),
+            ("train", variant(goal, "labelled"), job_dir / name / "oracle", tag + [f"row={ORACLE}"], None),
+        ]
+    for _, sub, _, _, _ in runs:
+        validate(sub)
+    return runs
+
+
+def run_chain(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
+    """Every sub-run of one seed, in order (module docstring). Each sub-run directory gets its config in
+    .hydra/config.yaml, as a run of hybrid-sysid has (so hybrid-sysid-eval and load_estimator read it), and a
+    record whose overrides are the job's plus scenario and row. Returns a short record of what ran."""
+    job_dir = Path(job_dir)
+    runs = plan(cfg, job_dir)
+    for kind, sub, run_dir, overrides, source in runs:
+        overrides = [o for o in job_overrides if not o.startswith("seed=")] + overrides + [f"seed={cfg.seed}"]
+        log.info("transfer: %s %s", kind, " ".join(overrides))
+        write_yaml_atomic(run_dir / ".hydra" / "config.yaml", OmegaConf.to_container(sub))
+        write_yaml_atomic(run_dir / ".hydra" / "overrides.yaml", overrides)
+        if kind == "eval":
+            evaluate_run(sub, source, run_dir, overrides)
+        else:
+            train(sub, run_dir, overrides)
+    return {"status": "completed", "runs": [str(r[2].relative_to(job_dir)) for r in runs]}

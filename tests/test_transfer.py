@@ -1,0 +1,199 @@
+"""Another car than the one trained on: car presets, evaluating a trained run elsewhere, label-free adaptation
+(init_from), and the plan of experiment=transfer."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+import torch
+from omegaconf import OmegaConf
+
+from hybrid_sysid.config import ConfigError, validate
+from hybrid_sysid.physics import QuarterCar, stable_dt_limit
+from hybrid_sysid.train import build_model, evaluate_run, train
+
+TINY = ["data=tiny", "trainer=debug"]
+# the paper's car (sec. 2.2) and the two shifted cars of experiment=transfer
+PAPER = dict(m1=145.0, m2=2160.0, k1=40000.0, k2=149171.0, k3=98935.0, c2=4741.0, c3=615.0)
+
+
+def save_config(cfg, run_dir: Path):
+    (run_dir / ".hydra").mkdir(parents=True, exist_ok=True)
+    (run_dir / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
+
+
+@pytest.mark.parametrize("preset, factors", [
+    ("paper", {}),
+    ("soft_seat", {"c3": 1.12, "k3": 0.90}),
+    ("compact", {"m1": 0.9, "m2": 0.6, "k1": 1.3, "k2": 1.4, "c2": 0.6}),
+])
+def test_car_presets_are_the_paper_car_scaled(make_cfg, preset, factors):
+    cfg = make_cfg(f"car={preset}") if preset != "paper" else make_cfg()
+    want = {k: v * factors.get(k, 1.0) for k, v in PAPER.items()}
+    assert set(cfg.car) == set(want)
+    for k, v in want.items():
+        assert cfg.car[k] == pytest.approx(v, rel=1e-12), k
+
+
+@pytest.mark.parametrize("overrides, match", [
+    (["car.c3=0"], r"car.c3 = 0.0 is not allowed: must be finite and > 0"),
+    (["car=compact", "car.m2=nan"], r"car.m2 = nan is not allowed: must be finite and > 0"),
+    (["car.k1=inf"], r"car.k1 = inf is not allowed: must be finite and > 0"),
+    (["data.seat_spread=1.0"], r"data.seat_spread = 1.0 is not allowed: must lie in \[0, 1\)"),
+])
+def test_bad_car_values_are_named(make_cfg, overrides, match):
+    with pytest.raises(ConfigError, match=match):
+        validate(make_cfg(*overrides))
+
+
+def test_the_stable_time_step_follows_the_car(make_cfg):
+    # a seat spring 20x stiffer: the seat mode at 50 kg is sqrt(20) times faster, the limit about that much lower
+    stiff = make_cfg("car.k3=1978700", "data.dt=0.01")
+    with pytest.raises(ConfigError, match=r"data.dt = 0.01 is not allowed: .*unstable above 0.00\d+ s for this car "
+                                          r"\(m1=145, .*k3=1\.9787e\+06"):
+        validate(stiff)
+    limit = stable_dt_limit(QuarterCar(k3=1978700.0))
+    # the limit is where the eq.-11 step map's spectral radius crosses 1: check it by eigenvalues directly
+    c = QuarterCar(k3=1978700.0)
+    for dt, stable in ((0.99 * limit, True), (1.01 * limit, False)):
+        p1, p2 = c.parameters(50.0)
+        # the step is linear: its matrix is the image of the unit states (road 0)
+        from hybrid_sysid.physics import step
+        cols = np.array(step(*np.eye(6), 0.0, p1, p2, dt, c.coefficients(), True)[:6])
+        assert (max(abs(np.linalg.eigvals(cols))) <= 1 + 1e-9) == stable
+    validate(make_cfg("car.k3=1978700", f"data.dt={0.99 * limit}"))  # below it: fine
+    # the continuous measurement takes no step: no limit
+    validate(make_cfg("car.k3=1978700", "data.dt=0.01", "data.measurement=continuous"))
+
+
+def test_the_spread_widens_the_networks_bounds(make_cfg):
+    cfg = make_cfg("data.seat_spread=0.3", "car=soft_seat")
+    c3, k3 = 615.0 * 1.12, 98935.0 * 0.90
+    np.testing.assert_allclose(cfg.model.net.p_min, [0.7 * c3 / 200, 0.7 * k3 / 200], rtol=1e-12)
+    np.testing.assert_allclose(cfg.model.net.p_max, [1.3 * c3 / 50, 1.3 * k3 / 50], rtol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def source(tmp_path_factory):
+    """A tiny labelled run on the paper's car, with its config saved as the app saves it."""
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.config import CONF_DIR
+    tmp = tmp_path_factory.mktemp("source")
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[*TINY, f"data.cache_dir={tmp / 'cache'}",
+                                                        "trainer.progress_bar=false", "evaluation.windows=[1,4]"])
+    run_dir = tmp / "run"
+    save_config(cfg, run_dir)
+    return cfg, train(cfg, run_dir, overrides=TINY), run_dir
+
+
+def test_evaluating_a_run_on_its_own_config_reproduces_its_metrics(source, tmp_path):
+    cfg, record, run_dir = source
+    again = evaluate_run(cfg, run_dir, tmp_path / "eval", overrides=["run=x"])
+    assert again["results"] == record["results"]  # exactly: same weights, windows and noise
+    on_disk = json.loads((tmp_path / "eval" / "metrics.json").read_text())
+    assert on_disk["source_run"] == str(run_dir) and on_disk["status"] == "completed"
+
+
+def test_evaluation_on_another_car_changes_the_labels_not_the_network(source, tmp_path):
+    cfg, record, run_dir = source
+    other = OmegaConf.merge(cfg, {"car": {"c3": 615.0 * 1.12}})
+    evaluate_run(other, run_dir, tmp_path / "eval", overrides=[])
+    import pandas as pd
+    pred = pd.read_csv(tmp_path / "eval" / "predictions.csv")
+    np.testing.assert_allclose(pred.p1_true, 615.0 * 1.12 / pred.m3, rtol=1e-6)  # the target's labels
+
+
+def adapt(source_dir, tmp_path, name, poison=False, monkeypatch=None):
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.config import CONF_DIR
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[
+            *TINY, f"data.cache_dir={tmp_path / 'cache'}", "trainer.progress_bar=false", "objective=hybrid",
+            "car=soft_seat", f"init_from={source_dir}", "model.optim.lr=5e-3"])
+    if poison:  # the target's labels replaced by garbage: a label-free adaptation must not notice
+        import hybrid_sysid.data.datamodule as dm_module
+        real = dm_module.get_dataset
+
+        def poisoned(spec, cache_dir=None):
+            ds = real(spec, cache_dir)
+            ds.params = np.random.default_rng(1).uniform(1.0, 5000.0, ds.params.shape)
+            return ds
+        monkeypatch.setattr(dm_module, "get_dataset", poisoned)
+    record = train(cfg, tmp_path / name, overrides=[])
+    state = torch.load(tmp_path / name / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]
+    return record, state
+
+
+def test_adaptation_starts_from_the_source_and_never_reads_labels(source, tmp_path, monkeypatch):
+    _, _, run_dir = source
+    clean, weights = adapt(run_dir, tmp_path, "clean")
+    poisoned, weights_poisoned = adapt(run_dir, tmp_path, "poisoned", poison=True, monkeypatch=monkeypatch)
+    assert clean["init_from"] == str(run_dir) and clean["monitor"] == "val/loss"
+    assert weights.keys() == weights_poisoned.keys()
+    for key in weights:
+        assert torch.equal(weights[key], weights_poisoned[key]), key
+    assert clean["results"] != poisoned["results"]  # the poison was there: the scores (which use labels) differ
+
+
+def test_adaptation_starts_from_the_sources_weights(source, tmp_path, make_cfg):
+    _, _, run_dir = source
+    cfg = make_cfg(*TINY, "objective=hybrid", f"init_from={run_dir}")
+    model = build_model(cfg)
+    from hybrid_sysid.train import load_network
+    load_network(model, cfg, run_dir, "init_from")
+    best = torch.load(run_dir / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]
+    for key, value in model.net.state_dict().items():
+        assert torch.equal(value, best[f"net.{key}"]), key
+
+
+def test_another_architecture_is_one_named_error(source, tmp_path, make_cfg):
+    _, _, run_dir = source
+    cfg = make_cfg(*TINY, "objective=hybrid", f"init_from={run_dir}", "model.net.channels=16")
+    with pytest.raises(ConfigError, match=r"^init_from = '.*' is not allowed: its network differs from model.net "
+                                          r"in channels \(32 there, 16 here\)$"):
+        train(cfg, tmp_path / "other", overrides=[])
+    assert not (tmp_path / "other").exists()  # before any work
+    with pytest.raises(ConfigError, match=r"init_from = '.*nowhere' is not allowed: it has no .hydra/config.yaml"):
+        train(make_cfg(*TINY, f"init_from={tmp_path / 'nowhere'}"), tmp_path / "other", overrides=[])
+
+
+def test_the_transfer_plan(make_cfg, tmp_path):
+    from hybrid_sysid.transfer import plan
+    cfg = make_cfg("experiment=transfer", "data=tiny", "seed=2")
+    runs = plan(cfg, tmp_path)
+    assert len(runs) == 1 + 4 * 3
+    kinds = {(r[3][0], r[3][1].split("=")[1][0]): r for r in runs}
+    source = runs[0]
+    assert source[1].objective._target_.endswith("LabelledObjective") and dict(source[1].car) == PAPER
+    seat = kinds[("scenario=seat_shift", "2")][1]
+    assert seat.objective._target_.endswith("HybridObjective") and seat.init_from == str(tmp_path / "source")
+    assert seat.trainer.max_steps == cfg.transfer.adapt_steps and seat.car.c3 == pytest.approx(615 * 1.12)
+    assert kinds[("scenario=continuous", "4")][1].data.measurement == "continuous"
+    assert kinds[("scenario=body_shift", "3")][1].car.m2 == pytest.approx(2160 * 0.6)
+    assert all(r[1].transfer is None and r[1].seed == 2 for r in runs)
+
+
+@pytest.mark.integration
+def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path):
+    _, _, run_dir = source
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+    cli = [sys.executable, "-c", "from hybrid_sysid.evaluate import main; main()"]
+    bad = subprocess.run(cli + [f"run={run_dir}", "objective=hybrid"], cwd=tmp_path, env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert bad.returncode == 2 and "Traceback" not in bad.stderr
+    assert bad.stderr.strip().splitlines()[-1].startswith("error: objective cannot be overridden in an evaluation")
+    sweep = subprocess.run(cli + ["-m", f"run={run_dir}", "car=paper,soft_seat", "hydra.sweep.dir=sweep"], cwd=tmp_path, env=env,
+                           capture_output=True, text=True, timeout=600)
+    assert sweep.returncode == 0, sweep.stderr[-2000:]
+    import pandas as pd
+    summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
+    assert set(summary.car) == {"paper", "soft_seat"} and (summary.status == "completed").all()
+    for job in ("0", "1"):
+        assert json.loads((tmp_path / "sweep" / job / "metrics.json").read_text())["source_run"] == str(run_dir)
