@@ -12,7 +12,7 @@ LAYERS = [
     {"physics"},
     {"data"},
     {"model", "baselines"},
-    {"config", "train", "records", "callbacks"},
+    {"config", "train", "records", "callbacks", "tracking"},
     {"report"},
     {"app", "estimator", "predict", "evaluate", "transfer", "__main__", "__init__"},
 ]

@@ -3,11 +3,17 @@
 Each job records its own failure or interruption in its run directory (Hydra skips ``on_multirun_end`` when a
 job raises), so a sweep goes on and its summary lists the job. A single run's config is checked before Hydra
 creates its directory (``Preflight``), so a rejected value or resume leaves nothing behind.
+
+Under a hyperparameter search (hydra-optuna-sweeper, conf/hparams_search) a job returns one number: the
+validation figure its model selection used (``best_score`` of its record: val/loss for a label-free objective,
+val/rel_dev otherwise; trainer.monitor). A failed job returns None, which the sweeper cannot cast to a number:
+it records a failed trial and the study goes on (a NaN would stop the whole study in optuna's ``tell``).
 """
 
 from __future__ import annotations
 
 import copy
+import importlib.util
 import logging
 import os
 import signal
@@ -170,8 +176,40 @@ def _make_dir(path: Path, key: str) -> None:
         _fail(f"{key} = {path} cannot be created: {type(exc).__name__}: {exc}")
 
 
+# an option that needs an optional package -> (the module it needs, the install that brings it)
+EXTRAS = {
+    "hparams_search=": ("hydra_plugins.hydra_optuna_sweeper", 'pip install -e ".[search]"'),
+    "hydra/sweeper=optuna": ("hydra_plugins.hydra_optuna_sweeper", 'pip install -e ".[search]"'),
+    "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
+    "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
+}
+
+
+def missing_extra(args) -> str | None:
+    """A one-line error for the first command-line option whose optional package is not installed (Hydra
+    itself would fail on it with a long message on the config search path), else None."""
+    for arg in args:
+        for prefix, (module, install) in EXTRAS.items():
+            if arg.lstrip("+~").startswith(prefix) and not _installed(module):
+                return f"{arg} needs {module.split('.')[-1].replace('_', '-')}, which is not installed: {install}"
+    return None
+
+
+def _installed(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:  # its parent package is missing
+        return False
+
+
+def search_value(record: dict) -> float | None:
+    """What a job returns to a hyperparameter search: its model-selection figure, None if it has none."""
+    value = record.get("best_score")
+    return None if value is None else float(value)
+
+
 @hydra.main(version_base="1.3", config_path=config.CONF_DIR, config_name="config")
-def hydra_main(cfg: DictConfig) -> dict:
+def hydra_main(cfg: DictConfig) -> dict | float | None:
     global _task_started
     _task_started = True
     hc = HydraConfig.get()
@@ -179,13 +217,17 @@ def hydra_main(cfg: DictConfig) -> dict:
     overrides = list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
     seed = cfg.get("seed", 0)
+    searching = "optuna" in str(hc.sweeper.get("_target_", ""))
+    # in a tracker, a sweep's jobs are runs of one experiment named after the sweep directory
+    experiment = Path(hc.sweep.dir).name if multirun else None
+    run_name = hc.job.override_dirname or None
     sweep_dir = Path(hc.sweep.dir) if multirun else None
     if _stopped(sweep_dir):  # a signal came while Hydra composed and launched: do not start
         name = signal.Signals(_received).name if _received else "the sweep's interruption"
         result = _record_end(run_dir, overrides, seed, "interrupted", f"not started: interrupted by {name}")
         if not multirun:
             sys.exit(128 + _received)
-        return result
+        return None if searching else result
     with interruptible():
         try:
             # imported here: a sweep's parent process composes and launches jobs, and need not load torch for it
@@ -195,22 +237,24 @@ def hydra_main(cfg: DictConfig) -> dict:
                 from hybrid_sysid.transfer import run_chain
 
                 return run_chain(cfg, run_dir, overrides)
-            record = train(cfg, run_dir, overrides)
+            record = train(cfg, run_dir, overrides, experiment=experiment, run_name=run_name)
         except Interrupted as exc:
-            return _interrupted(run_dir, overrides, seed, exc.signum, sweep_dir)
+            result = _interrupted(run_dir, overrides, seed, exc.signum, sweep_dir)
+            return None if searching else result
         except Exception as exc:  # record the failure where the sweep summary will look for it
             error = f"{type(exc).__name__}: {exc}"
             _record_end(run_dir, overrides, seed, "failed", error)
             if multirun:  # let the other jobs run; the sweep summary exits non-zero
                 log.error("job failed: %s", error)
-                return {"status": "failed", "error": error}
+                return None if searching else {"status": "failed", "error": error}
             if isinstance(exc, (ConfigError, CompletedRecordError)) and os.environ.get("HYDRA_FULL_ERROR") != "1":
                 _fail(str(exc))  # a bad value: one line, no traceback
             if isinstance(exc, OSError) and os.environ.get("HYDRA_FULL_ERROR") != "1":
                 _fail(f"{error} (run directory {run_dir})", status=1)  # e.g. a full disk: one line
             raise
-    _draw_figures(run_dir)
-    return record
+    if record.get("rank", 0) == 0:  # with DDP, rank 0 alone has the record
+        _draw_figures(run_dir)
+    return search_value(record) if searching else record
 
 
 def _draw_figures(run_dir: Path) -> None:
@@ -269,6 +313,10 @@ def main() -> None:
     previous = {s: signal.getsignal(s) for s in SIGNALS}
     for s in SIGNALS:
         signal.signal(s, _stop_sweep)
+    missing = missing_extra(sys.argv[1:])
+    if missing:
+        print(f"error: {missing}", file=sys.stderr)
+        sys.exit(2)
     try:
         hydra_main()
     except SystemExit as exc:

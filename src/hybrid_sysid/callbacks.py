@@ -13,6 +13,7 @@ from typing import Sequence
 import lightning as L
 
 from hybrid_sysid.model.metrics import summarise
+from hybrid_sysid.tracking import curve_metrics, log_metrics
 
 CURVE_COLUMNS = ["step", "seconds", "split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]
 
@@ -62,7 +63,7 @@ class LearningCurves(L.Callback):
     relative deviations on the training split's first ``train_limit`` recordings (clean) and on the test split
     at each of ``test_noise``, through the model's ``predict_split`` on the data module's fixed windows.
     ``rows`` holds one row per parameter and evaluation (``CURVE_COLUMNS``), with the optimiser step and the
-    training time of ``clock``. A curve point evaluates 1,000 + 400 per noise level windows on the default
+    training time of ``clock``; the same rows go to the trainer's loggers, if any. A curve point evaluates 1,000 + 400 per noise level windows on the default
     data, several times a validation's cost, so a sweep may take fewer points than it validates."""
 
     def __init__(self, clock: TrainingClock, test_noise: Sequence[float], train_limit: int = 1000,
@@ -72,17 +73,19 @@ class LearningCurves(L.Callback):
         self.rows: list[dict] = []
 
     def on_validation_epoch_end(self, trainer, pl_module):
-        if trainer.sanity_checking:
+        if trainer.sanity_checking or not trainer.is_global_zero:  # with DDP: rank 0 alone
             return
         step, last = trainer.global_step, trainer.global_step >= trainer.max_steps
         if self.every_n_steps and step % self.every_n_steps and not last:
             return
         seconds = round(self.clock.seconds, 3)
+        new = []
         for split, std in self.sets:
             limit = self.train_limit if split == "train" else None
             pred, true = pl_module.predict_split(trainer.datamodule, split, std, limit)
-            self.rows += summarise(pred, true, step=trainer.global_step, seconds=seconds, split=split,
-                                   noise_std=std)
+            new += summarise(pred, true, step=trainer.global_step, seconds=seconds, split=split, noise_std=std)
+        self.rows += new
+        log_metrics(trainer.loggers, curve_metrics(new), trainer.global_step)
 
     def state_dict(self) -> dict:
         return {"rows": self.rows}

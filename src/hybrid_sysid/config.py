@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import difflib
 import logging
+import importlib.util
 import math
 import os
 import re
@@ -115,6 +116,8 @@ class Config:
     objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
     trainer: TrainerConfig = MISSING
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    # experiment trackers: name -> a Lightning logger's _target_ and arguments (conf/logger; {} for none)
+    logger: Dict[str, Any] = field(default_factory=dict)
     # the car's constants (QuarterCar's fields; the group conf/car, car=paper by default), e.g. car.c3=700
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
     # experiment=transfer: a job is a chain of runs (hybrid_sysid.transfer); null for one run
@@ -230,6 +233,7 @@ def validate(cfg: DictConfig) -> None:
     if d.integration not in INTEGRATIONS:
         _bad("data.integration", d.integration, f"one of {', '.join(INTEGRATIONS)}")
     _validate_baseline(cfg)
+    validate_loggers(cfg)
     obj = cfg.objective
     net = cfg.model.net
     if net.get("unknown") == "m3" and d.get("seat_spread", 0.0) > 0:
@@ -404,6 +408,22 @@ def _flat(tree: dict, prefix: str = "") -> dict:
         else:
             out[key] = v
     return out
+
+
+# a logger class -> the modules it can run on (any one of them); they come with the "loggers" extra
+LOGGER_MODULES = {"TensorBoardLogger": ("tensorboard", "tensorboardX"), "MLFlowLogger": ("mlflow",)}
+LOGGERS_EXTRA = 'pip install -e ".[loggers]"'
+
+
+def validate_loggers(cfg: DictConfig) -> None:
+    """Each configured logger names a class, and the library it needs is installed."""
+    for name, lg in (cfg.get("logger") or {}).items():
+        target = str(lg.get("_target_", "")) if isinstance(lg, DictConfig) else ""
+        if not target:
+            _bad(f"logger.{name}", lg, "a mapping with the _target_ of a Lightning logger (see conf/logger)")
+        needs = next((mods for cls, mods in LOGGER_MODULES.items() if target.endswith("." + cls)), ())
+        if needs and not any(importlib.util.find_spec(m) for m in needs):
+            raise ConfigError(f"logger.{name} needs the {needs[0]} package, which is not installed: {LOGGERS_EXTRA}")
 
 
 def _validate_baseline(cfg: DictConfig) -> None:

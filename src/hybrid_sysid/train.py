@@ -23,9 +23,10 @@ from hybrid_sysid.config import ConfigError, dataset_spec, validate
 from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.model.metrics import summarise
-from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.model.module import LOG_EVERY, ParameterEstimator
 from hybrid_sysid.model.objectives import filter_taps
 from hybrid_sysid.records import RECORD, previous_record, run_record, write_record
+from hybrid_sysid.tracking import build_loggers, finish, hyperparameters
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -52,8 +53,10 @@ def build_model(cfg: DictConfig) -> ParameterEstimator:
                               warmup_fraction=o.warmup_fraction)
 
 
-def build_trainer(cfg: DictConfig, run_dir, callbacks=(), **overrides) -> L.Trainer:
-    """The run's lightning.Trainer (benchmarks/training_throughput.py times this same one)."""
+def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **overrides) -> L.Trainer:
+    """The run's lightning.Trainer (benchmarks/training_throughput.py times this same one). ``loggers``: the
+    experiment trackers (hybrid_sysid.tracking); none by default. trainer.extra and then ``overrides`` may
+    replace any argument."""
     t = cfg.trainer
     callbacks = list(callbacks)
     if t.progress_bar:
@@ -61,9 +64,11 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), **overrides) -> L.Trai
         callbacks.append(L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10))
     kwargs = dict(
         max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
-        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=False,
+        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=list(loggers) or False,
         callbacks=callbacks, enable_progress_bar=t.progress_bar, enable_model_summary=False,
-        num_sanity_val_steps=0, default_root_dir=str(run_dir), **t.get("extra", {}))
+        num_sanity_val_steps=0, default_root_dir=str(run_dir),
+        log_every_n_steps=LOG_EVERY)  # the steps on which the module logs its training loss
+    kwargs.update(t.get("extra", {}))
     kwargs.update(overrides)
     return L.Trainer(**kwargs)
 
@@ -197,8 +202,13 @@ def load_network(model: ParameterEstimator, cfg: DictConfig, run_dir: Path, key:
     return path
 
 
-def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
-    """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/."""
+def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | None = None,
+          run_name: str | None = None) -> dict:
+    """Fit and evaluate one configuration; write metrics.json, curves.csv, predictions.csv and figures/.
+    ``experiment`` and ``run_name`` name the run in an experiment tracker (hybrid_sysid.tracking.build_loggers).
+
+    With several devices (DDP) every rank trains on its own window stream; rank 0 alone evaluates and writes,
+    and the other ranks return {"status": "completed", "rank": r} without a record."""
     validate(cfg)  # every range check before any work
     run_dir = Path(run_dir)
     init = cfg.get("init_from")
@@ -223,8 +233,11 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     dm = build_datamodule(cfg)
     noise_levels = [float(s) for s in cfg.noise.eval_std]
     windows = [int(k) for k in cfg.evaluation.windows]
+    loggers = build_loggers(cfg, run_dir, experiment, run_name)
+    for logger in loggers:
+        logger.log_hyperparams(hyperparameters(cfg))
     if is_baseline(cfg.model.net._target_):
-        return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows, threads)
+        return run_baseline(cfg, dm, run_dir, overrides, noise_levels, windows, threads, loggers)
     model = model if model is not None else build_model(cfg)
     monitor = monitor_of(cfg, model.objective)
 
@@ -232,7 +245,7 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
                          save_last=True, auto_insert_metric_name=False)
     clock = TrainingClock()
     curves = LearningCurves(clock, noise_levels, every_n_steps=cfg.trainer.get("curve_every_n_steps"))
-    trainer = build_trainer(cfg, run_dir, [clock, curves, ckpt])
+    trainer = build_trainer(cfg, run_dir, [clock, curves, ckpt], loggers)
     dm.setup("fit")
     last = resume_checkpoint(run_dir / "checkpoints")
     if last is not None:
@@ -241,6 +254,8 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last is not None else None)
     fit_seconds = time.perf_counter() - start
     train_seconds = clock.seconds  # evaluations excluded, the time before a resume included
+    if trainer.global_rank != 0:
+        return {"status": "completed", "rank": trainer.global_rank}
 
     if ckpt.best_model_path:
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
@@ -251,16 +266,18 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=()) -> dict:
     classes = by_road_class(predictions)
     record = run_record("completed", overrides, cfg.seed, steps=trainer.global_step, train_seconds=train_seconds,
                         results=results, monitor=monitor, best_checkpoint=Path(ckpt.best_model_path).name or None,
-                        fit_seconds=round(fit_seconds, 2), threads=threads, by_road_class=classes,
-                        **({"init_from": str(init)} if init else {}))
+                        best_score=None if ckpt.best_model_score is None else float(ckpt.best_model_score),
+                        devices=trainer.world_size, fit_seconds=round(fit_seconds, 2), threads=threads,
+                        by_road_class=classes, **({"init_from": str(init)} if init else {}))
     write_record(run_dir, record)
+    finish(loggers, results, trainer.global_step)
     log.info("run %s: %d steps in %.1f s\n%s\n%s", run_dir, trainer.global_step, train_seconds,
              console_table(results), class_table(classes))
     return record
 
 
 def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, noise_levels, windows,
-                 threads: int) -> dict:
+                 threads: int, loggers=()) -> dict:
     """A baseline without a network (``trainable = False``, e.g. least squares): no Lightning, no training.
     Its record has the same form as a network run's, with steps 0 and train_seconds = the time of its fits
     (all done while evaluating); curves.csv has the header only (no learning curve)."""
@@ -273,6 +290,7 @@ def run_baseline(cfg: DictConfig, dm: QCMDataModule, run_dir: Path, overrides, n
                         results=results, monitor=None, best_checkpoint=None,
                         fit_seconds=round(estimator.fit_seconds, 2), threads=threads, by_road_class=classes)
     write_record(run_dir, record)
+    finish(loggers, results, 0)
     log.info("run %s: baseline %s, fits in %.2f s\n%s\n%s", run_dir, cfg.model.net._target_,
              estimator.fit_seconds, console_table(results), class_table(classes))
     return record

@@ -107,7 +107,7 @@ def test_a_resumed_stream_continues_where_the_checkpoint_left_it(steps, accumula
     # fresh data module: its stream goes on with the batches the uninterrupted one draws next
     a = make(seed=4)
     assert a.state_dict() == {}  # outside a Trainer there is no position to save
-    a.trainer = SimpleNamespace(global_step=steps, accumulate_grad_batches=accumulate)
+    a.trainer = SimpleNamespace(global_step=steps, accumulate_grad_batches=accumulate, global_rank=0)
     taken = steps * accumulate
     assert taken > a.train_windows.batches_per_pass  # resumed in a later pass than the first
     uninterrupted = list(islice(iter(a.train_dataloader()), taken + 3))

@@ -2,7 +2,9 @@
 so it is not a conftest (two conftest modules would shadow each other on sys.path)."""
 
 import json
+import re
 import zlib
+from itertools import dropwhile, takewhile
 from pathlib import Path
 
 import numpy as np
@@ -92,12 +94,19 @@ def make_sweep(sweep: Path, failed: bool = True, extra: tuple = ()) -> Path:
 
 
 def plain(cell: str) -> str:
-    """A markdown cell without its marks: **best** and a trailing dagger (gap beyond the seed spread)."""
-    return cell.removeprefix("**").removesuffix("**").removesuffix(" †")
+    """A markdown cell without its marks and interval: "**m ± s** [a, b] †" -> "m ± s"."""
+    return re.sub(r" \[[^\]]*\]$", "", cell.removesuffix(" †")).removeprefix("**").removesuffix("**")
+
+
+def interval(cell: str) -> tuple[float, float] | None:
+    """The "[a, b]" of a markdown cell as numbers, None if it has none."""
+    m = re.search(r"\[(-?[\d.]+), (-?[\d.]+)\]", cell)
+    return (float(m.group(1)), float(m.group(2))) if m else None
 
 
 def parse_markdown(text: str) -> list[dict]:
     """The first markdown table in text as a list of {header: cell}."""
-    lines = [ln for ln in text.splitlines() if ln.startswith("|")]
-    split = [[c.strip() for c in ln.strip("|").split(" | ")] for ln in lines]
+    lines = list(takewhile(lambda ln: ln.startswith("|"), dropwhile(lambda ln: not ln.startswith("|"),
+                                                                     text.splitlines())))
+    split = [[c.strip() for c in re.split(r"(?<!\\)\|", ln.strip().strip("|"))] for ln in lines]
     return [dict(zip(split[0], row)) for row in split[2:]]

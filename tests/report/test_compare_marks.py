@@ -43,6 +43,14 @@ def known(tmp_path):
     return tmp_path / "sw"
 
 
+def t_interval_by_hand(v) -> tuple[float, float]:
+    """The 95% Student t interval of the mean: mean -+ t_(0.975, n-1) s / sqrt(n), t's quantile from scipy."""
+    from scipy.stats import t
+
+    half = t.ppf(0.975, len(v) - 1) * np.std(v, ddof=1) / np.sqrt(len(v))
+    return np.mean(v) - half, np.mean(v) + half
+
+
 def _by_hand(values: dict) -> dict:
     """For one column: {objective: mark} by the rule, computed with numpy from the seed values."""
     mean = {o: np.mean(v) for o, v in values.items()}
@@ -73,8 +81,10 @@ def test_markdown_bolds_the_best_daggers_beyond_spread_and_states_the_rule_once(
     text = to_markdown(summary_table(collect(known)))
     rows = {r["objective"]: r for r in parse_markdown(text)}
     col = "noise 0 p1 [%]"
-    assert rows["labelled"][col] == "**12.00 ± 2.00**"
-    assert rows["hybrid"][col].endswith(" †") and rows["combined"][col] == plain(rows["combined"][col])
+    low, high = t_interval_by_hand(LAB)
+    assert rows["labelled"][col] == f"**12.00 ± 2.00** [{100 * low:.2f}, {100 * high:.2f}]"
+    assert rows["hybrid"][col].endswith(" †")
+    assert not rows["combined"][col].startswith("**") and not rows["combined"][col].endswith("†")
     assert plain(rows["hybrid"][col]) == f"{100 * (0.12 + SPREAD * (1 + EPS)):.2f} ± 1.00"
     assert all(r["seeds"] == "3" for r in rows.values())
     under = text.split("\n\n", 1)[1]
@@ -160,7 +170,8 @@ def test_latex_marks_escapes_and_notes(known):
     assert r"\begin{tabular}{lrrrrrr}" in tex and r"\toprule" in tex and r"\bottomrule" in tex
     labelled = next(ln for ln in tex.splitlines() if ln.startswith("labelled &"))
     hybrid = next(ln for ln in tex.splitlines() if ln.startswith("hybrid &"))
-    assert labelled.split(" & ")[1] == r"$\mathbf{12.00 \pm 2.00}$"
+    low, high = t_interval_by_hand(LAB)
+    assert labelled.split(" & ")[1] == rf"$\mathbf{{12.00 \pm 2.00}}\ [{100 * low:.2f}, {100 * high:.2f}]$"
     assert hybrid.split(" & ")[1].endswith(r"^{\dagger}$")
     assert r"$|m_a - m_b| > s_a + s_b$" in tex and "$^\\dagger$" in tex and r"\caption{" in tex
     renamed = table.rename(index={"hybrid": "ls_window"})

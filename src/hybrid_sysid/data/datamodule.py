@@ -136,11 +136,18 @@ class RandomWindows(IterableDataset):
     a generator seeded by (seed, e), so the stream is reproducible and ``resume_at`` can resume it exactly.
     Whole batches are cut with vectorised indexing. One stream (no epochs) also spares Lightning's per-epoch
     overhead, which would dominate on small datasets.
+
+    ``rank`` (several devices, DDP) picks the stream: rank 0 draws the one-device stream, rank r > 0 its own,
+    seeded by (seed, e, r), so N ranks see N different batches per step.
     """
 
-    def __init__(self, data: QCMData, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0):
+    def __init__(self, data: QCMData, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0,
+                 rank: int = 0):
         self.data, self.rows, self.batch_size = data, rows, batch_size
-        self.seed, self.noise_std, self.start_batch = seed, noise_std, 0
+        self.seed, self.noise_std, self.start_batch, self.rank = seed, noise_std, 0, rank
+
+    def _key(self, *parts: int) -> list[int]:
+        return [self.seed, *parts] + ([self.rank] if self.rank else [])
 
     @property
     def batches_per_pass(self) -> int:
@@ -157,14 +164,14 @@ class RandomWindows(IterableDataset):
             e, skip = e + 1, 0
 
     def one_pass(self, e: int, skip: int = 0) -> Iterator[dict[str, torch.Tensor]]:
-        rng = np.random.default_rng([self.seed, 1000 + e])
+        rng = np.random.default_rng(self._key(1000 + e))
         order = rng.permutation(self.rows)
         starts = rng.integers(0, self.data.n_steps - self.data.window + 1, size=len(order))
         for b in range(skip, self.batches_per_pass):
             sl = slice(b * self.batch_size, (b + 1) * self.batch_size)
             noise = state = None
             if self.noise_std > 0:  # one generator per batch, so a resumed stream draws the same noise
-                noise_rng = np.random.default_rng([self.seed, 2000 + e, b])
+                noise_rng = np.random.default_rng(self._key(2000 + e, b))
                 noise = self.noise_std * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
                 state = self.noise_std * start_state(starts[sl], self.data.dt,
                                                      noise_rng.standard_normal((len(order[sl]), 2)))
@@ -342,6 +349,8 @@ class QCMDataModule(L.LightningDataModule):
         return super().transfer_batch_to_device(batch, device, dataloader_idx)
 
     def train_dataloader(self) -> DataLoader:
+        if self.trainer is not None:  # called inside each launched process, where the rank is known
+            self.train_windows.rank = self.trainer.global_rank
         return DataLoader(self.train_windows, batch_size=None)
 
     def val_dataloader(self) -> DataLoader:

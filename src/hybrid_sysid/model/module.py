@@ -51,7 +51,8 @@ class ParameterEstimator(L.LightningModule):
                                      "lower model.optim.lr or check the data")
         # a self.log call costs about 1.8 ms (benchmarks/README.md, training throughput), near a tenth of a
         # fast_cnn step: the progress bar's loss follows Lightning's own default logging interval instead
-        if self.global_step % LOG_EVERY == 0:
+        # (on the steps where the Trainer's log_every_n_steps = LOG_EVERY passes it on to the loggers)
+        if (self.global_step + 1) % LOG_EVERY == 0:
             self.log("train/loss", loss.detach(), prog_bar=True, batch_size=len(batch["signals"]))
         return loss
 
@@ -65,10 +66,12 @@ class ParameterEstimator(L.LightningModule):
         self.val_batches = []
         pred, true = torch.cat(preds), torch.cat(trues)
         dev = relative_deviation(pred.cpu().numpy(), true.cpu().numpy())
-        self.log("val/loss", torch.stack(losses).sum() / len(pred))
-        self.log("val/rel_dev", float(dev.mean()), prog_bar=True)
-        self.log("val/p1_rel_dev", float(dev[:, 0].mean()))
-        self.log("val/p2_rel_dev", float(dev[:, 1].mean()))
+        # with DDP every rank validates the same windows with the same weights: the mean over ranks (sync_dist)
+        # is the same value, and keeps the checkpoint's monitor in step across ranks
+        self.log("val/loss", torch.stack(losses).sum() / len(pred), sync_dist=True)
+        self.log("val/rel_dev", float(dev.mean()), prog_bar=True, sync_dist=True)
+        self.log("val/p1_rel_dev", float(dev[:, 0].mean()), sync_dist=True)
+        self.log("val/p2_rel_dev", float(dev[:, 1].mean()), sync_dist=True)
 
     @torch.no_grad()
     def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1):

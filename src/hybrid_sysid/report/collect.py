@@ -152,3 +152,23 @@ def row_keys(df: pd.DataFrame) -> list[str]:
     known = runs[runs.status != "unreadable"]
     runs = known if len(known) else runs
     return [k for k in df.columns if k not in HEAD + TAIL and runs[k].nunique() > 1]
+
+
+def load_predictions(root: Path, df: pd.DataFrame, split: str = "test") -> pd.DataFrame:
+    """Per recording and evaluation, the relative deviation |p - p_pred| / p (eq. 23) of each completed run's
+    predictions.csv on ``split``, in long form: run, noise_std, windows, recording, parameter, rel_dev. Runs
+    without the file (or with a damaged one) are left out."""
+    frames = []
+    for run in df[df.status == "completed"].run.unique():
+        try:
+            p = pd.read_csv(Path(root) / run / "predictions.csv")
+            p = p[p.split == split]
+            for name in ("p1", "p2"):
+                dev = (p[f"{name}_true"] - p[f"{name}_pred"]).abs() / p[f"{name}_true"].abs()
+                frames.append(pd.DataFrame({"run": run, "noise_std": p.noise_std.astype(float),
+                                            "windows": p.windows.astype(int), "recording": p.recording,
+                                            "parameter": name, "rel_dev": dev}))
+        except (OSError, ValueError, KeyError, AttributeError):
+            continue
+    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(
+        columns=["run", "noise_std", "windows", "recording", "parameter", "rel_dev"])

@@ -9,9 +9,9 @@ import pandas as pd
 
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.report import sweep_figures
-from hybrid_sysid.report.collect import load_runs, row_keys
-from hybrid_sysid.report.tables import (K_LEVEL, METRICS, compared_level, row_label, summary_table, to_latex,
-                                        to_markdown)
+from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
+from hybrid_sysid.report.tables import (K_LEVEL, METRICS, compared_level, paired_deviations, row_label,
+                                        summary_table, to_latex, to_markdown)
 
 
 def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
@@ -61,16 +61,19 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
                   latex: bool = False, compare: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Write sweep_dir/summary.csv, summary.md, with ``latex`` summary.tex, and figures/ from the runs at or
     below paths (default: sweep_dir). ``compare``: the row key whose values the marks compare (default:
-    objective when swept). Returns (long form, table)."""
+    objective when swept). Returns (long form, table); the table's attrs["paired"] holds the per-recording
+    deviations its marks test (tables.paired_deviations)."""
     sweep_dir = Path(sweep_dir)
     root, df = load_runs(sweep_dir if paths is None else paths)
     table = summary_table(df, split=split, metric=metric)
     compared_level(table, compare)  # a bad compare key fails before anything is written
+    if metric == "mean_rel_dev":  # the paired test compares per-recording deviations (tables.compare_marks)
+        table.attrs["paired"] = paired_deviations(load_predictions(root, df, split), df, table)
     runs = df.drop_duplicates("run")
     n_bad = int((runs.status != "completed").sum())
     md = [f"# Sweep summary: {METRICS[metric]} on the {split} split [%]", "",
           f"{len(runs)} runs: {len(runs) - n_bad} completed, {n_bad} failed or unreadable. Cells: mean ± sample "
-          f"standard deviation (ddof=1) over seeds.{windows_note(df, table, split)}", "",
+          f"standard deviation (ddof=1) over seeds, [95% t interval].{windows_note(df, table, split)}", "",
           to_markdown(table, compare=compare), *([threads_warning(df), ""] if threads_warning(df) else []),
           "## Failed jobs", "", *(failed_lines(df) or ["None."])]
     sweep_dir.mkdir(parents=True, exist_ok=True)

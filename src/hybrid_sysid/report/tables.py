@@ -1,11 +1,17 @@
-"""The comparison table of a sweep: mean ± seed spread per cell, the best row marked, and whether each other row's
-gap to it exceeds the seed spread; as GitHub markdown and as LaTeX (booktabs).
+"""The comparison table of a sweep: mean ± seed spread and a confidence interval per cell, the best row marked,
+and whether each other row is worse than it; as GitHub markdown (pandas + tabulate) and LaTeX (pandas' Styler,
+booktabs).
 
-The spread over seeds is the sample standard deviation (ddof=1); with a single seed it is NaN and no "±" is
-shown. The rule (one line, printed under every table): in each column, among rows that differ only in the
-compared key (``objective`` when it is swept, ``row`` in experiment=transfer's table), the lowest mean is **bold**; a row is marked † when its gap to the
-bold row is larger than the combined seed spread, |m_a - m_b| > s_a + s_b. A row with fewer than two seeds has no
-spread and is never marked †. Lower is better: both metrics are errors.
+The spread over seeds is the sample standard deviation (ddof=1); the interval is the 95% Student t interval of
+the mean over seeds (scipy.stats.t; seeds are the independent repetitions, and with 3 of them it is wide). With a
+single seed neither is shown. The marks (the rule is printed under every table): in each column, among rows
+that differ only in the compared key (``objective`` when it is swept, ``row`` in experiment=transfer's
+table), the lowest mean is **bold**. Where a row
+and the bold row share their test recordings and the per-recording predictions are at hand (``paired``), a row is
+marked † when a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) on the per-recording relative
+deviations, averaged over seeds, finds a difference at p < 0.05; otherwise when its gap to the bold row is larger
+than the combined seed spread, |m_a - m_b| > s_a + s_b (rows with fewer than two seeds are then never marked).
+Lower is better: both metrics are errors.
 """
 
 from __future__ import annotations
@@ -14,6 +20,7 @@ import math
 
 import numpy as np
 import pandas as pd
+from scipy import stats
 
 from hybrid_sysid.report.collect import natural_key, row_keys
 
@@ -23,12 +30,14 @@ DAGGER = "†"
 MIN_SEEDS = 3  # rows with fewer completed seeds get a warning under the table
 K_LEVEL = "K"  # the row level of test-time windows per recording, when several are present
 NO_KEYS = "all"  # the single row label when no override varies across runs
+CONFIDENCE = 0.95  # of the interval over seeds
+ALPHA = 0.05  # the paired test's level for †
 
 
 def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel_dev") -> pd.DataFrame:
     """From collect's long form. Rows: the swept values other than seed ("all" if none vary), plus a level "K"
     when rows sharing those values hold more than one windows value. Columns (noise_std, parameter, stat): stat
-    "mean" and "std" (ddof=1) of the metric over the completed seeds; then ("n_seeds", "", "") counting completed
+    "mean", "std" (ddof=1), "ci_low" and "ci_high" (t_interval) of the metric over the completed seeds; then ("n_seeds", "", "") counting completed
     runs (with a K level: completed runs with results at that K) and ("n_failed", "", "") counting the others."""
     if metric not in METRICS:
         raise ValueError(f"metric={metric!r} is not one of {list(METRICS)}")
@@ -52,13 +61,66 @@ def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel
 
     names = ["noise_std", "parameter", "stat"]
     if len(sub):
-        stats = sub.groupby(rows + names[:2])[metric].agg(mean="mean", std=lambda s: s.std(ddof=1))
-        cells = stats.stack().unstack(names[:2] + [-1]).sort_index(axis=1)  # noise, parameter, mean|std
+        stat = sub.groupby(rows + names[:2])[metric].agg(mean="mean", std=lambda s: s.std(ddof=1),
+                                                         ci_low=lambda s: t_interval(s)[0],
+                                                         ci_high=lambda s: t_interval(s)[1])
+        cells = stat.stack().unstack(names[:2] + [-1]).sort_index(axis=1)  # noise, parameter, mean|std
     else:
         cells = pd.DataFrame(index=counts.index, columns=pd.MultiIndex.from_tuples([], names=names))
     table = pd.concat([cells.reindex(counts.index), counts], axis=1)
     table.columns = table.columns.set_names(names)
     return table.iloc[sorted(range(len(table)), key=lambda i: natural_key(table.index[i]))]
+
+
+def t_interval(values) -> tuple[float, float]:
+    """The CONFIDENCE Student t interval of the mean of values (NaN, NaN with fewer than two)."""
+    v = np.asarray(values, dtype=float)
+    if len(v) < 2:
+        return math.nan, math.nan
+    low, high = stats.t.interval(CONFIDENCE, len(v) - 1, loc=v.mean(), scale=stats.sem(v))
+    return float(low), float(high)
+
+
+def paired_deviations(preds: pd.DataFrame, df: pd.DataFrame, table: pd.DataFrame) -> dict:
+    """For the paired test: table row label -> DataFrame (index recording, columns (noise_std, parameter)) of
+    the per-recording relative deviations averaged over the row's seeds. ``preds``: collect.load_predictions;
+    ``df``: collect's long form, which gives each run its row."""
+    if preds.empty:
+        return {}
+    names = [str(n) for n in table.index.names]
+    keys = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
+    runs = df.drop_duplicates("run").set_index("run")[keys] if keys else None
+    p = preds.join(runs, on="run") if keys else preds.assign(**{NO_KEYS: NO_KEYS})
+    if K_LEVEL in names:
+        p = p.assign(**{K_LEVEL: p.windows})
+    rows = [n for n in names]
+    mean = p.groupby(rows + ["recording", "noise_std", "parameter"]).rel_dev.mean().unstack(["noise_std", "parameter"])
+    out = {}
+    for label, frame in mean.groupby(level=rows if len(rows) > 1 else rows[0]):
+        out[label] = frame.droplevel(rows)
+    return out
+
+
+def wilcoxon_p(a, b) -> float:
+    """Two-sided p-value of the Wilcoxon signed-rank test of paired samples; 1 when they are equal."""
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    if not np.any(d):
+        return 1.0
+    return float(stats.wilcoxon(a, b).pvalue)
+
+
+def _paired_p(paired: dict | None, label_a, label_b, col) -> float | None:
+    """The paired test's p-value between two rows in a column, None when either lacks per-recording data or
+    they do not share their recordings."""
+    if not paired or label_a not in paired or label_b not in paired:
+        return None
+    a, b = paired[label_a], paired[label_b]
+    if col not in a.columns or col not in b.columns:
+        return None
+    a, b = a[col].dropna(), b[col].dropna()
+    if len(a) < 2 or not a.index.sort_values().equals(b.index.sort_values()):
+        return None
+    return wilcoxon_p(a.sort_index().to_numpy(), b.sort_index().to_numpy())
 
 
 def _as_tuple(label) -> tuple:
@@ -85,11 +147,14 @@ def compared_level(table: pd.DataFrame, compare: str | None = None) -> str | Non
     return candidates[0] if candidates else None
 
 
-def compare_marks(table: pd.DataFrame, compare: str | None = None) -> pd.DataFrame:
+def compare_marks(table: pd.DataFrame, compare: str | None = None, paired: dict | None = None) -> pd.DataFrame:
     """One mark per row and (noise_std, parameter) column: "best" (lowest mean of its group, the first of equal
-    means), "worse" (gap to the best > s_best + s_row), "within" (gap <= that), "unknown" (a spread is missing:
-    fewer than 2 seeds), or "" (no mean, or no other row to compare with). A group is the rows sharing every
-    index level but the compared one."""
+    means), "worse" / "within" (by the paired test, p < ALPHA or not, where both rows have per-recording
+    deviations in ``paired`` (paired_deviations; default: table.attrs["paired"]) on the same recordings; else
+    by the spread rule: gap to the best > s_best + s_row or not), "unknown" (no paired data and a spread is
+    missing: fewer than 2 seeds), or "" (no mean, or no other row to compare with). A group is the rows sharing
+    every index level but the compared one."""
+    paired = table.attrs.get("paired") if paired is None else paired
     cols = cell_columns(table)
     # no completed cell (every job failed): an empty frame of the right index, not a constructor error
     marks = pd.DataFrame("", index=table.index, columns=pd.MultiIndex.from_tuples(cols)) if cols \
@@ -110,8 +175,11 @@ def compare_marks(table: pd.DataFrame, compare: str | None = None) -> pd.DataFra
                 continue
             best = min(rows, key=lambda r: mean[r])
             for r in rows:
+                p = None if r == best else _paired_p(paired, table.index[r], table.index[best], col)
                 if r == best:
                     mark = BEST
+                elif p is not None:
+                    mark = WORSE if p < ALPHA else WITHIN
                 elif math.isnan(std[r]) or math.isnan(std[best]):
                     mark = UNKNOWN
                 else:
@@ -141,17 +209,27 @@ def _tex(s: str) -> str:
 
 
 def legend(table: pd.DataFrame, compare: str | None = None, latex: bool = False) -> list[str]:
-    """The lines under a table: the marking rule and a warning for rows with fewer than MIN_SEEDS seeds."""
+    """The lines under a table: the interval, the marking rule (and which test made the marks), and a warning
+    for rows with fewer than MIN_SEEDS seeds."""
     esc = _tex if latex else str
     bold, dagger, rule = (r"\textbf{Bold}", r"$^\dagger$", r"$|m_a - m_b| > s_a + s_b$") if latex \
         else ("**Bold**", DAGGER, "`|m_a - m_b| > s_a + s_b`")
     lines = []
     level = compared_level(table, compare)
     if level is not None and cell_columns(table):
+        spread = (f"its gap to the bold cell exceeds the combined seed spread, {rule} (s: std over seeds, ddof=1)")
+        if table.attrs.get("paired"):
+            test = (f"a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) on the per-recording relative "
+                    f"deviations, averaged over seeds, finds it worse than the bold cell at p < {ALPHA:g} (the rows "
+                    f"share their test recordings; the test takes recordings, not seeds, as the sample); where "
+                    f"rows do not share them, {spread}")
+        else:
+            test = spread
         lines.append(f"{bold}: lowest mean in its column among rows that differ only in "
-                     f"{esc(level) if latex else f'`{level}`'}; {dagger}: its gap to the bold cell exceeds the "
-                     f"combined seed spread, {rule} (s: std over seeds, ddof=1); unmarked: within that spread, or "
-                     "fewer than 2 seeds.")
+                     f"{esc(level) if latex else f'`{level}`'}; {dagger}: {test}; unmarked: not worse by that "
+                     "rule, or fewer than 2 seeds without a paired test. "
+                     f"[a, b]: {CONFIDENCE:.0%} Student t interval of the mean over seeds."
+                     .replace("%", r"\%" if latex else "%"))
     few = [(label, int(n)) for label, n in table[("n_seeds", "", "")].items() if n < MIN_SEEDS]
     if few:
         lines.append(f"Warning: fewer than {MIN_SEEDS} seeds in "
@@ -160,37 +238,47 @@ def legend(table: pd.DataFrame, compare: str | None = None, latex: bool = False)
     return lines
 
 
-def _md_cell(mean: str, std: str | None, mark: str) -> str:
+def _md_cell(mean: str, std: str | None, ci: str | None, mark: str) -> str:
     text = mean if std is None else f"{mean} ± {std}"
-    return f"**{text}**" if mark == BEST else f"{text} {DAGGER}" if mark == WORSE else text
+    text = f"**{text}**" if mark == BEST else text
+    text = text if ci is None else f"{text} {ci}"
+    return f"{text} {DAGGER}" if mark == WORSE else text
 
 
-def _tex_cell(mean: str, std: str | None, mark: str) -> str:
+def _tex_cell(mean: str, std: str | None, ci: str | None, mark: str) -> str:
     body = mean if std is None else f"{mean} \\pm {std}"
-    return f"$\\mathbf{{{body}}}$" if mark == BEST else f"${body}^{{\\dagger}}$" if mark == WORSE else f"${body}$"
+    body = f"\\mathbf{{{body}}}" if mark == BEST else body
+    body = body if ci is None else f"{body}\\ {ci}"
+    return f"${body}^{{\\dagger}}$" if mark == WORSE else f"${body}$"
 
 
 def _rows(table: pd.DataFrame, compare: str | None, cell) -> list[list[str]]:
-    """The body of the table as text: per row its labels, its cells (cell(mean, std or None, mark) in percent;
-    "n/a" without a mean) and its counts of seeds and failed jobs."""
+    """The body of the table as text: per row its labels, its cells (cell(mean, std or None, interval or None,
+    mark) in percent; "n/a" without a mean) and its counts of seeds and failed jobs."""
     cols = cell_columns(table)
     marks = compare_marks(table, compare)
+    has_ci = all((*c, s) in table.columns for c in cols for s in ("ci_low", "ci_high"))
     out = []
     for i, (label, row) in enumerate(table.iterrows()):
         cells = []
         for j, (n, p) in enumerate(cols):
             mean, std = row[(n, p, "mean")], row[(n, p, "std")]
+            low, high = (row[(n, p, "ci_low")], row[(n, p, "ci_high")]) if has_ci else (math.nan, math.nan)
+            ci = None if pd.isna(low) else f"[{100 * low:.2f}, {100 * high:.2f}]"
             cells.append("n/a" if pd.isna(mean) else
-                         cell(f"{100 * mean:.2f}", None if pd.isna(std) else f"{100 * std:.2f}", marks.iloc[i, j]))
+                         cell(f"{100 * mean:.2f}", None if pd.isna(std) else f"{100 * std:.2f}", ci,
+                              marks.iloc[i, j]))
         out.append(_shown(_as_tuple(label)) + cells + [str(int(row[(c, "", "")])) for c in ("n_seeds", "n_failed")])
     return out
 
 
 def markdown_table(header: list[str], rows: list[list[str]], n_left: int) -> str:
-    """A GitHub markdown table, its first n_left columns left-aligned and the others right-aligned."""
-    line = lambda cells: "| " + " | ".join(str(c).replace("|", "\\|") for c in cells) + " |"  # noqa: E731
-    rule = "|" + "|".join([" --- "] * n_left + [" ---: "] * (len(header) - n_left)) + "|"
-    return "\n".join([line(header), rule, *map(line, rows)]) + "\n"
+    """A GitHub markdown table (pandas' to_markdown, through tabulate), its first n_left columns left-aligned
+    and the others right-aligned; cells are shown as given (no number parsing)."""
+    frame = pd.DataFrame([[str(c).replace("|", "\\|") for c in r] for r in rows],
+                         columns=[str(h).replace("|", "\\|") for h in header])
+    align = ["left"] * n_left + ["right"] * (len(header) - n_left)
+    return frame.to_markdown(index=False, colalign=align, disable_numparse=True) + "\n"
 
 
 def to_markdown(table: pd.DataFrame, compare: str | None = None) -> str:
@@ -205,21 +293,17 @@ def to_markdown(table: pd.DataFrame, compare: str | None = None) -> str:
 
 
 def to_latex(table: pd.DataFrame, compare: str | None = None, caption: str | None = None) -> str:
-    """The same table as LaTeX (needs \\usepackage{booktabs}): $m \\pm s$ cells, \\mathbf for the best row of a
-    column, ^\\dagger where the gap to it exceeds the seed spread; the rule and warnings follow as text."""
+    """The same table as LaTeX through pandas' Styler (needs \\usepackage{booktabs}): $m \\pm s$ cells and their
+    interval, \\mathbf for the best row of a column, ^\\dagger where it is worse; the rule and warnings follow as
+    text."""
     cols = cell_columns(table)
     nl = table.index.nlevels
     header = [_tex(str(n)) for n in table.index.names] + [f"{n:g} {_tex(str(p))}" for n, p in cols] \
         + ["seeds", "failed"]
-    lines = [r"\begin{tabular}{" + "l" * nl + "r" * (len(header) - nl) + "}", r"\toprule"]
-    if cols:
-        lines += [" & ".join([""] * nl) + f" & \\multicolumn{{{len(cols)}}}{{c}}{{noise std [m/s$^2$], "
-                  r"parameter [\%]} & & \\", f"\\cmidrule(lr){{{nl + 1}-{nl + len(cols)}}}"]
-    lines += [" & ".join(header) + r" \\", r"\midrule"]
-    lines += [" & ".join([_tex(v) for v in row[:nl]] + row[nl:]) + r" \\" for row in _rows(table, compare, _tex_cell)]
-    lines += [r"\bottomrule", r"\end{tabular}"]
-    body = "\n".join(lines)
-    if caption:
-        body = "\\begin{table}\n\\centering\n" + body + f"\n\\caption{{{_tex(caption)}}}\n\\end{{table}}"
+    rows = [[_tex(v) for v in row[:nl]] + row[nl:] for row in _rows(table, compare, _tex_cell)]
+    frame = pd.DataFrame(rows, columns=header)
+    body = frame.style.hide(axis="index").to_latex(
+        column_format="l" * nl + "r" * (len(header) - nl), hrules=True,
+        caption=_tex(caption) if caption else None, position_float="centering" if caption else None)
     notes = legend(table, compare, latex=True)
-    return body + "\n" + ("\n" + "\n\n".join(notes) + "\n" if notes else "")
+    return body + ("\n" + "\n\n".join(notes) + "\n" if notes else "")
