@@ -14,8 +14,8 @@ from hybrid_sysid.physics import (QuarterCar, continuous_recordings, relative_st
 
 CAR = QuarterCar()
 SCHEMES = {  # name: (recording, pairing of velocities in the seat equation)
-    "paper (eq. 12 recording, eq. 21 pairing)": ("paper", "paper"),
-    "consistent recording, eq. 21 pairing z'_k - y'_k": ("consistent", "paper"),
+    "paper (eq. 12 recording, eq. 22 pairing)": ("paper", "paper"),
+    "consistent recording, eq. 22 pairing z'_k - y'_k": ("consistent", "paper"),
     "consistent (recording + pairing z'_k - y'_{k+1})": ("consistent", "consistent"),
     "continuous recording (exact samples), symplectic Euler + pairing z'_k - y'_{k+1}": ("continuous",
                                                                                         "consistent"),

@@ -71,6 +71,7 @@ def interrupt(tmp_path, run, how):
     return proc.returncode, out
 
 
+@pytest.mark.slow  # SIGKILL; the SIGTERM case below resumes the same way
 def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
     run = tmp_path / "killed"
     code, _ = interrupt(tmp_path, run, signal.SIGKILL)
@@ -87,7 +88,8 @@ def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
     assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]
 
 
-@pytest.mark.parametrize("how", [signal.SIGTERM, signal.SIGINT], ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize("how", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)],
+                         ids=["SIGTERM", "SIGINT"])
 def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_path, uninterrupted, how):
     run = tmp_path / "run"
     code, out = interrupt(tmp_path, run, how)
@@ -107,7 +109,8 @@ def sweep_statuses(sw):
     return summary.drop_duplicates("run").set_index("run").status.to_dict()
 
 
-@pytest.mark.parametrize("launcher, how", [("basic", signal.SIGTERM), ("joblib", signal.SIGINT)])
+@pytest.mark.parametrize("launcher, how", [pytest.param("basic", signal.SIGTERM, marks=pytest.mark.slow),
+                                           ("joblib", signal.SIGINT)])
 def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how):
     sw = tmp_path / "sw"
     args = ["-m", f"launcher={launcher}", "seed=0,1,2", *TINY, f"hydra.sweep.dir={sw}"]
@@ -177,6 +180,7 @@ def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words):
     assert not (tmp_path / "no").exists()
 
 
+@pytest.mark.slow  # test_reliability.py checks the same guard in-process
 def test_no_command_replaces_a_completed_record(tmp_path):
     run = tmp_path / "run"
     first = run_app(tmp_path, *TINY, f"hydra.run.dir={run}")

@@ -26,8 +26,8 @@ POISONED = textwrap.dedent("""
     import torch
     from hybrid_sysid.data import datamodule
     init = datamodule.QCMData.__init__
-    def poisoned(self, ds, window):
-        init(self, ds, window)
+    def poisoned(self, *args, **kwargs):
+        init(self, *args, **kwargs)
         self.params = torch.rand(self.params.shape, generator=torch.Generator().manual_seed(1)) * 50
     datamodule.QCMData.__init__ = poisoned
     from hybrid_sysid.app import main

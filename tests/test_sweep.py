@@ -117,6 +117,7 @@ def test_sweeps_started_together_get_their_own_directories(tmp_path):
     assert all((s / "summary.csv").exists() and (s / "0" / "metrics.json").exists() for s in sweeps)
 
 
+@pytest.mark.slow  # test_faults.py interrupts a sweep and re-runs it in the default suite
 def test_an_interrupted_sweep_completes_without_redoing_finished_jobs(tmp_path):
     import signal
     import time

@@ -49,7 +49,7 @@ def least_squares_p(seat, rel_vel, rel_disp):
 
 def worst_fit_error(road_class, measurement, dt, paired="measurement"):
     masses, seat, body, _ = simulated(road_class, measurement, dt, n_steps=int(6 / dt), seed="ABCDE".index(road_class))
-    if paired == "same_step":  # eq. 21 as written: z'_k - y'_k
+    if paired == "same_step":  # eq. 22 as written: z'_k - y'_k
         rel_vel, rel_disp = relative_states(seat, body, dt, "paper")
     else:
         rel_vel, rel_disp = relative_states(seat, body, dt, measurement)
@@ -86,5 +86,5 @@ def test_paper_measurement_biases_the_fit(road_class):
     # docs/design.md, "The hybrid objective and the discretisation": re-integrating eq.-12 recordings does not
     # give the simulator's states back
     assert worst_fit_error(road_class, "paper", 0.001) > 0.5
-    # the consistent recording with eq. 21's same-step pairing leaves a bias of about dt p1 y''
+    # the consistent recording with eq. 22's same-step pairing leaves a bias of about dt p1 y''
     assert 0.002 < worst_fit_error(road_class, "consistent", 0.001, paired="same_step") < 0.03

@@ -1,4 +1,4 @@
-"""The paper's relative deviation |p - p_pred| / p (eq. 23), summarised per parameter."""
+"""The paper's relative deviation |p - p_pred| / p (eq. 24), summarised per parameter."""
 
 from __future__ import annotations
 

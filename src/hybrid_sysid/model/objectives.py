@@ -57,7 +57,7 @@ def noise_gram(fir: np.ndarray, dt: float, measurement: str) -> np.ndarray:
 
 
 class LabelledObjective(nn.Module):
-    """J_L (eq. 17): mean over the batch of sum_i |p_i - p~_i|, both divided by ``p_scale``.
+    """J_L (eq. 18): mean over the batch of sum_i |p_i - p~_i|, both divided by ``p_scale``.
 
     Scaling puts p1 (~8) and p2 (~1200) on one footing; unscaled, p2 alone would drive the gradient. The run's
     config passes the midpoint of the prior of p (``${p_prior:scale}``, hybrid_sysid.config).
@@ -80,7 +80,7 @@ class LabelledObjective(nn.Module):
 
 
 class HybridObjective(nn.Module):
-    """J_U (eq. 22): squared error of z''_rec = -p1 rel_vel - p2 rel_disp against the recorded seat z''.
+    """J_U (eq. 23): squared error of z''_rec = -p1 rel_vel - p2 rel_disp against the recorded seat z''.
 
     Uses only the signals and the re-integrated relative states, never batch["params"] (no labels).
     Per sample the mean squared residual over the window; with ``normalize`` it is divided by that window's

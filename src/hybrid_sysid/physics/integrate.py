@@ -1,4 +1,4 @@
-"""The paper's re-integration of recorded accelerations (sec. 3, below eq. 20)."""
+"""The paper's re-integration of recorded accelerations (sec. 3, below eq. 21)."""
 
 from __future__ import annotations
 
@@ -49,7 +49,7 @@ def relative_states(
 
     These are the regressors of the hybrid objective, z''_k = -p1 rel_vel_k - p2 rel_disp_k.
 
-    measurement "paper": eq. 21 as written, rel_vel_k = z'_k - y'_k.
+    measurement "paper": eq. 22 as written, rel_vel_k = z'_k - y'_k.
     measurement "consistent": the pairing the simulator's seat update used, rel_vel_k = z'_k - y'_{k+1}
     (eq. 11 updates w with v_{k+1}); with the consistent recording the seat equation then holds exactly, while
     pairing z'_k with y'_k would leave a bias of about dt p1 y''_k (1.2% in p at dt = 1 ms, 6% at 5 ms).

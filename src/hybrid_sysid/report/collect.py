@@ -155,7 +155,7 @@ def row_keys(df: pd.DataFrame) -> list[str]:
 
 
 def load_predictions(root: Path, df: pd.DataFrame, split: str = "test") -> pd.DataFrame:
-    """Per recording and evaluation, the relative deviation |p - p_pred| / p (eq. 23) of each completed run's
+    """Per recording and evaluation, the relative deviation |p - p_pred| / p (eq. 24) of each completed run's
     predictions.csv on ``split``, in long form: run, noise_std, windows, recording, parameter, rel_dev. Runs
     without the file (or with a damaged one) are left out."""
     frames = []

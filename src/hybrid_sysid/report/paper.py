@@ -3,7 +3,7 @@ of a results page. It places numbers side by side and draws no conclusion from t
 written by hand (docs/results_notes.md).
 
 The paper reports one training per objective, after 500,000 Adam steps, as mu = mean and sigma = standard deviation
-of the relative deviation |p - p_pred| / p (eq. 23) over the recordings of a split; no seeds, no repeats. Each
+of the relative deviation |p - p_pred| / p (eq. 24) over the recordings of a split; no seeds, no repeats. Each
 figure below is cited by section and figures. Figures it does not report are absent here, not guessed: it gives no
 sigma at noise 0.01, no figure per parameter for the hybrid objective at noise 0.01, and nothing on the training
 split at noise 0.01 (it trains and evaluates training data clean only). Its summaries "4-8%" (labelled) and
@@ -25,7 +25,7 @@ from hybrid_sysid.report.tables import K_LEVEL, markdown_table
 
 NOISE_LEVELS = (0.0, 0.01)  # the paper's: clean, and N(0, 0.01) added to both channels (sec. 3.3)
 PAPER_SPLITS = ("train", "test")  # it has no validation split
-OBJECTIVES = ("labelled", "hybrid")  # eq. 17 (J_L) and eq. 22 (J_U)
+OBJECTIVES = ("labelled", "hybrid")  # eq. 18 (J_L) and eq. 23 (J_U)
 
 
 class PaperFigure(NamedTuple):
@@ -73,7 +73,7 @@ PAPER_PROTOCOL: dict[str, str] = {
     "speed": "not stated",
     "window": "500 steps (sec. 2.4)",
     "measurement": "eq. 12: accelerations from the states at step k",
-    "test noise std": "clean, and N(0, 0.01) on both channels (eq. 24); the captions of Figs. 22-29 write "
+    "test noise std": "clean, and N(0, 0.01) on both channels (eq. 25); the captions of Figs. 22-29 write "
                       "sigma = 0.01",
     "training noise std": "none: trained on clean data (sec. 3.3)",
     "seeds": "one training per objective; no seeds or repeats reported",
