@@ -387,7 +387,7 @@ def check_resume(run_dir: Path, cfg: DictConfig) -> None:
     except Exception as exc:  # noqa: BLE001 - a damaged file cannot tell; the run's own files still resume
         log.warning("%s is unreadable (%s); resuming without comparing the configs", saved_path, exc)
         return
-    now, was = _flat(OmegaConf.to_container(cfg, resolve=False)), _flat(saved if isinstance(saved, dict) else {})
+    now, was = flatten(OmegaConf.to_container(cfg, resolve=False)), flatten(saved if isinstance(saved, dict) else {})
     differ = [k for k in sorted(set(now) | set(was))
               if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")]
     if differ:
@@ -399,12 +399,13 @@ def check_resume(run_dir: Path, cfg: DictConfig) -> None:
 RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar"}
 
 
-def _flat(tree: dict, prefix: str = "") -> dict:
+def flatten(tree: dict, prefix: str = "") -> dict:
+    """A nested dict as {dotted.key: leaf} (an empty dict is a leaf too)."""
     out = {}
     for k, v in tree.items():
         key = f"{prefix}{k}"
-        if isinstance(v, dict):
-            out.update(_flat(v, key + "."))
+        if isinstance(v, dict) and v:
+            out.update(flatten(v, key + "."))
         else:
             out[key] = v
     return out

@@ -15,6 +15,8 @@ from filelock import FileLock
 from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config import flatten
+
 SINGLE_RUNS = "runs"  # the MLflow experiment of runs outside a sweep
 
 
@@ -47,35 +49,26 @@ def build_loggers(cfg: DictConfig, run_dir: Path, experiment: str | None = None,
 
 def hyperparameters(cfg: DictConfig) -> dict:
     """The resolved config flattened to dotted keys (lists as text), e.g. {"model.optim.lr": 0.02}."""
-    flat = {}
+    flat = flatten(OmegaConf.to_container(cfg, resolve=True))
+    return {k: v if isinstance(v, (int, float, str, bool)) else str(v) for k, v in flat.items()}
 
-    def walk(node, prefix):
-        if isinstance(node, dict) and node:
-            for k, v in node.items():
-                walk(v, f"{prefix}{k}.")
-        else:
-            flat[prefix[:-1]] = node if isinstance(node, (int, float, str, bool)) else str(node)
 
-    walk(OmegaConf.to_container(cfg, resolve=True), "")
-    return flat
+def _as_metrics(rows: Iterable[dict], base) -> dict[str, float]:
+    out = {}
+    for r in rows:
+        out[f"{base(r)}_mean_rel_dev"], out[f"{base(r)}_std_rel_dev"] = r["mean_rel_dev"], r["std_rel_dev"]
+    return out
 
 
 def curve_metrics(rows: Iterable[dict]) -> dict[str, float]:
     """Learning-curve rows as metrics: curve/<split>/noise_<std>/<parameter>_mean_rel_dev (and _std_)."""
-    out = {}
-    for r in rows:
-        base = f"curve/{r['split']}/noise_{r['noise_std']:g}/{r['parameter']}"
-        out[f"{base}_mean_rel_dev"], out[f"{base}_std_rel_dev"] = r["mean_rel_dev"], r["std_rel_dev"]
-    return out
+    return _as_metrics(rows, lambda r: f"curve/{r['split']}/noise_{r['noise_std']:g}/{r['parameter']}")
 
 
 def result_metrics(results: Iterable[dict]) -> dict[str, float]:
     """The record's results as metrics: final/<split>/noise_<std>/K<windows>/<parameter>_mean_rel_dev."""
-    out = {}
-    for r in results:
-        base = f"final/{r['split']}/noise_{r['noise_std']:g}/K{r.get('windows', 1)}/{r['parameter']}"
-        out[f"{base}_mean_rel_dev"], out[f"{base}_std_rel_dev"] = r["mean_rel_dev"], r["std_rel_dev"]
-    return out
+    return _as_metrics(results, lambda r: f"final/{r['split']}/noise_{r['noise_std']:g}/K{r.get('windows', 1)}/"
+                                          f"{r['parameter']}")
 
 
 def log_metrics(loggers: Sequence, metrics: dict[str, float], step: int) -> None:
