@@ -180,6 +180,7 @@ def _make_dir(path: Path, key: str) -> None:
 EXTRAS = {
     "hparams_search=": ("hydra_plugins.hydra_optuna_sweeper", 'pip install -e ".[search]"'),
     "hydra/sweeper=optuna": ("hydra_plugins.hydra_optuna_sweeper", 'pip install -e ".[search]"'),
+    "experiment=tuned": ("optuna", 'pip install -e ".[search]"'),
     "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
     "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
 }
@@ -237,6 +238,10 @@ def hydra_main(cfg: DictConfig) -> dict | float | None:
                 from hybrid_sysid.transfer import run_chain
 
                 return run_chain(cfg, run_dir, overrides)
+            if cfg.get("tuned"):  # experiment=tuned: a search and the runs of its default and best values
+                from hybrid_sysid.tuned import run_tuned
+
+                return run_tuned(cfg, run_dir, overrides)
             record = train(cfg, run_dir, overrides, experiment=experiment, run_name=run_name)
         except Interrupted as exc:
             result = _interrupted(run_dir, overrides, seed, exc.signum, sweep_dir)

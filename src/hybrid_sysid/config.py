@@ -105,6 +105,17 @@ class EvaluationConfig:
 
 
 @dataclass
+class TunedConfig:
+    """experiment=tuned (hybrid_sysid.tuned): each objective searched with the same budget, then trained with its
+    default and its best values on several seeds."""
+
+    search: str = "fast_cnn"  # the hparams_search preset whose space, sampler and trial training the study uses
+    n_trials: int = 12  # per objective; trial 0 is the model's default values
+    trial_seed: int = 1000  # the trials' seed, apart from the seeds the table reports
+    seeds: List[int] = field(default_factory=lambda: [0, 1, 2])
+
+
+@dataclass
 class Config:
     seed: int = 0
     resume: Optional[str] = None
@@ -122,6 +133,8 @@ class Config:
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
     # experiment=transfer: a job is a chain of runs (hybrid_sysid.transfer); null for one run
     transfer: Optional[Dict[str, Any]] = None
+    # experiment=tuned: a job searches one objective and trains its default and best values (hybrid_sysid.tuned)
+    tuned: Optional[TunedConfig] = None
 
 
 @dataclass
@@ -262,7 +275,8 @@ def validate(cfg: DictConfig) -> None:
 
 # the schema's sections, whose keys are fixed (model.net, objective, car and trainer.extra are free-form)
 _SECTIONS = {"": Config, "data": DataConfig, "road": RoadConfig, "noise": NoiseConfig, "model": ModelConfig,
-             "model.optim": OptimConfig, "trainer": TrainerConfig, "evaluation": EvaluationConfig}
+             "model.optim": OptimConfig, "trainer": TrainerConfig, "evaluation": EvaluationConfig,
+             "tuned": TunedConfig}
 
 
 def _check_known_keys(cfg: DictConfig) -> None:

@@ -23,8 +23,8 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config import CONF_DIR, ConfigError, validate
-from hybrid_sysid.records import write_yaml_atomic
+from hybrid_sysid.chain import group, write_run_files
+from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.train import evaluate_run, train
 
 log = logging.getLogger("hybrid_sysid")
@@ -34,19 +34,10 @@ SOURCE, ADAPTED, SCRATCH, ORACLE = ("1 labelled, paper's car", "2 + hybrid adapt
 SCENARIO_KEYS = ("car", "data")
 
 
-def group(name: str, choice: str) -> DictConfig:
-    """A config group's file (conf/<name>/<choice>.yaml) as a node; ConfigError naming the key if absent."""
-    path = Path(CONF_DIR) / name / f"{choice}.yaml"
-    if not path.is_file():
-        options = sorted(p.stem for p in path.parent.glob("*.yaml"))
-        raise ConfigError(f"transfer.scenarios: {name} = {choice!r} is not allowed: one of {', '.join(options)}")
-    return OmegaConf.load(path)
-
-
 def variant(cfg: DictConfig, objective: str, **changes) -> DictConfig:
     """A copy of the config with another objective and the given dotted keys changed; no transfer block."""
     out = OmegaConf.merge(cfg, {"transfer": None})
-    out.objective = group("objective", objective)
+    out.objective = group("objective", objective, "transfer")
     for key, value in changes.items():
         OmegaConf.update(out, key.replace("__", "."), value, merge=False)
     return out
@@ -60,7 +51,7 @@ def target(cfg: DictConfig, name: str, scenario) -> DictConfig:
                           f"{' and '.join(SCENARIO_KEYS)}")
     out = OmegaConf.merge(cfg, {"data": scenario.get("data") or {}})
     if scenario.get("car"):
-        out.car = group("car", scenario.car)
+        out.car = group("car", scenario.car, f"transfer.scenarios.{name}")
     return out
 
 
@@ -95,8 +86,7 @@ def run_chain(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     for kind, sub, run_dir, overrides, source in runs:
         overrides = [o for o in job_overrides if not o.startswith("seed=")] + overrides + [f"seed={cfg.seed}"]
         log.info("transfer: %s %s", kind, " ".join(overrides))
-        write_yaml_atomic(run_dir / ".hydra" / "config.yaml", OmegaConf.to_container(sub))
-        write_yaml_atomic(run_dir / ".hydra" / "overrides.yaml", overrides)
+        write_run_files(run_dir, sub, overrides)
         if kind == "eval":
             evaluate_run(sub, source, run_dir, overrides)
         else:

@@ -30,6 +30,9 @@ def parse_args(argv=None) -> argparse.Namespace:
                    help="output directory (default: the PATH if one is given, else ./report)")
     p.add_argument("--compare", default=None, metavar="KEY",
                    help="the swept key whose rows the marks compare (default: objective when swept)")
+    p.add_argument("--exclude", action="append", default=[], metavar="GLOB",
+                   help="leave out the runs whose name relative to the paths' common parent matches (repeatable), "
+                   "e.g. '*/search/*': experiment=tuned's trials")
     p.add_argument("--latex", action="store_true", help="also write summary.tex (a booktabs table)")
     p.add_argument("--reproduction", action="store_true",
                    help="also write reproduction.md: the paper's figures beside ours and both protocols "
@@ -63,7 +66,7 @@ def main(argv=None) -> int:
         if args.results is None or args.out is not None:
             out = args.out or (args.paths[0] if len(args.paths) == 1 else Path("report"))
             df, table = write_summary(out, paths=args.paths, split=args.split, metric=args.metric,
-                                      latex=args.latex, compare=args.compare)
+                                      latex=args.latex, compare=args.compare, exclude=args.exclude)
             print(to_markdown(table, compare=args.compare), end="")
             written = ["summary.csv", "summary.md"] + ["summary.tex"] * args.latex
             if args.reproduction:
@@ -76,7 +79,8 @@ def main(argv=None) -> int:
         if args.results is not None:
             text, n, n_bad = write_results(args.results, args.paths, command=shlex.join([PROG, *argv]),
                                            split=args.split, metric=args.metric, compare=args.compare,
-                                           reproduction=args.reproduction, notes=args.notes)
+                                           reproduction=args.reproduction, notes=args.notes,
+                                           exclude=args.exclude)
             print(text, end="")
             bad = max(bad, n_bad)
             print(f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and "

@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import math
 import os
+from fnmatch import fnmatch
 from pathlib import Path
 
 import pandas as pd
@@ -107,10 +108,11 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
     return [{**base, **overrides, **r} for r in results or [{}]]  # no results: one row, NaN metrics
 
 
-def load_runs(paths) -> tuple[Path, pd.DataFrame]:
+def load_runs(paths, exclude=()) -> tuple[Path, pd.DataFrame]:
     """The runs at or below paths in long form (see collect), and the directory their names are relative to:
     the inputs' common parent, so runs of two merged sweeps ("a/0", "b/0") never share a name, and a single run
-    is named by its own name. Raises ValueError when the paths hold no run."""
+    is named by its own name. Runs whose name matches a glob pattern of ``exclude`` (e.g. "*/search/*") are left
+    out. Raises ValueError when the paths hold no run."""
     paths = _as_paths(paths)
     runs = find_runs(paths)
     if not runs:
@@ -118,6 +120,9 @@ def load_runs(paths) -> tuple[Path, pd.DataFrame]:
     root = Path(os.path.commonpath([p.resolve() for p in paths]))
     root = root.parent if root in runs else root
     names = {run.relative_to(root).as_posix(): run for run in runs}
+    names = {name: run for name, run in names.items() if not any(fnmatch(name, p) for p in exclude)}
+    if not names:
+        raise ValueError(f"every run under {[str(p) for p in paths]} matches exclude={list(exclude)}")
     df = pd.DataFrame([row for name, run in names.items() for row in _rows_of(run, name)])
     keys = [c for c in df.columns if c not in HEAD + TAIL]  # first-seen order across runs
     df = df.reindex(columns=HEAD + keys + TAIL)

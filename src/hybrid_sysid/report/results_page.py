@@ -21,6 +21,7 @@ from hybrid_sysid.report.paper import LEGEND, comparison_markdown
 from hybrid_sysid.report.protocol import one_line, protocol
 from hybrid_sysid.report.summary import failed_lines, windows_note
 from hybrid_sysid.report.tables import METRICS, summary_table, to_markdown
+from hybrid_sysid.report.tuning import tuning_markdown
 
 
 def _title(df: pd.DataFrame, path: Path) -> tuple[str, str]:
@@ -36,10 +37,12 @@ def _title(df: pd.DataFrame, path: Path) -> tuple[str, str]:
 
 
 def write_results(file, paths, command: str, split: str = "test", metric: str = "mean_rel_dev",
-                  compare: str | None = None, reproduction: bool = False, notes=None) -> tuple[str, int, int]:
+                  compare: str | None = None, reproduction: bool = False, notes=None,
+                  exclude=()) -> tuple[str, int, int]:
     """Write the page and its figures (file's folder / figures / <section>.png); returns (text, number of runs,
     number of failed or unreadable runs). ``command`` is quoted in the header as the way to regenerate the page;
-    ``notes``, a markdown file (the hand-written reading of the tables), is placed right after the header."""
+    ``notes``, a markdown file (the hand-written reading of the tables), is placed right after the header;
+    ``exclude``: glob patterns of run names left out of every table (collect.load_runs)."""
     file = Path(file)
     figures = file.parent / "figures"
     lines = ["# Results", "",
@@ -50,7 +53,7 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
         lines += [f"<!-- from {Path(notes).as_posix()} -->", Path(notes).read_text(encoding="utf-8").strip(), ""]
     n_all, n_bad, used = 0, 0, set()
     for path in map(Path, paths):
-        root, df = load_runs(path)
+        root, df = load_runs(path, exclude)
         table = summary_table(df, split=split, metric=metric)
         title, slug = _title(df, path)
         base, i = slug, 2
@@ -70,6 +73,9 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
             if "scenario" in table.index.names:  # experiment=transfer: the bars of its rows per scenario
                 write_atomic(figures / f"{slug}_bars.png", lambda p: sweep_figures.transfer_figure(table, p))
                 lines += [f"![transfer: {title}]({figures.name}/{slug}_bars.png)", ""]
+            if "tuning" in table.index.names:  # experiment=tuned: default against tuned, and each search
+                write_atomic(figures / f"{slug}_tuning.png", lambda p: sweep_figures.tuning_figure(table, p))
+                lines += [f"![tuning: {title}]({figures.name}/{slug}_tuning.png)", "", tuning_markdown(path), ""]
         failed = failed_lines(df)
         if failed:
             lines += ["Failed jobs:", "", *failed, ""]

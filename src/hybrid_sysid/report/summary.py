@@ -58,13 +58,14 @@ def _curves(df: pd.DataFrame, root: Path) -> pd.DataFrame:
 
 
 def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mean_rel_dev", figures: bool = True,
-                  latex: bool = False, compare: str | None = None) -> tuple[pd.DataFrame, pd.DataFrame]:
+                  latex: bool = False, compare: str | None = None, exclude=()) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Write sweep_dir/summary.csv, summary.md, with ``latex`` summary.tex, and figures/ from the runs at or
-    below paths (default: sweep_dir). ``compare``: the row key whose values the marks compare (default:
+    below paths (default: sweep_dir), but those whose name (relative to the common parent, e.g. "0/search/3")
+    matches a glob pattern of ``exclude``. ``compare``: the row key whose values the marks compare (default:
     objective when swept). Returns (long form, table); the table's attrs["paired"] holds the per-recording
     deviations its marks test (tables.paired_deviations)."""
     sweep_dir = Path(sweep_dir)
-    root, df = load_runs(sweep_dir if paths is None else paths)
+    root, df = load_runs(sweep_dir if paths is None else paths, exclude)
     table = summary_table(df, split=split, metric=metric)
     compared_level(table, compare)  # a bad compare key fails before anything is written
     if metric == "mean_rel_dev":  # the paired test compares per-recording deviations (tables.compare_marks)

@@ -27,15 +27,45 @@ def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_d
             err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
             ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3,
                         label=row_label(table.index.names, label if isinstance(label, tuple) else (label,)))
-        if positive and len(noises) > 1:
-            ax.set_xscale("symlog", linthresh=min(positive), linscale=0.5)
-        ax.set_xticks(x, [f"{n:g}" for n in x])  # ticks at the levels evaluated, not at decades
-        ax.xaxis.set_minor_locator(NullLocator())
-        ax.set_yscale("log")
-        ax.set(xlabel="noise std [m/s^2]", ylabel=METRICS[metric], title=param)
-        ax.grid(True, which="both", alpha=0.3)
+        noise_axis(ax, x, positive, METRICS[metric], param)
     axes[0, 0].legend(fontsize="small")
     save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds")
+
+
+def noise_axis(ax, x, positive, ylabel: str, title: str) -> None:
+    """x (noise std) symlog, linear below the smallest non-zero noise so the clean level (0) is on the axis, ticks
+    at the levels evaluated; y log."""
+    if positive and len(x) > 1:
+        ax.set_xscale("symlog", linthresh=min(positive), linscale=0.5)
+    ax.set_xticks(x, [f"{n:g}" for n in x])  # ticks at the levels evaluated, not at decades
+    ax.xaxis.set_minor_locator(NullLocator())
+    ax.set_yscale("log")
+    ax.set(xlabel="noise std [m/s^2]", ylabel=ylabel, title=title)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "mean_rel_dev") -> None:
+    """experiment=tuned: the metric against noise std, one colour per objective, dashed with its default values
+    and solid with its tuned ones, one panel per parameter, at one K; error bars: std over seeds. ``table`` has
+    the row levels objective and tuning (and K when several were evaluated)."""
+    if "K" in table.index.names:
+        table = table.xs(k, level="K")
+    cells = [c for c in table.columns if c[2] == "mean"]
+    params = sorted({p for _, p, _ in cells})
+    fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
+    colours = {o: f"C{i}" for i, o in enumerate(dict.fromkeys(table.index.get_level_values("objective")))}
+    for ax, param in zip(axes[0], params):
+        x = sorted(n for n, p, _ in cells if p == param)
+        for label, row in table.iterrows():
+            keys = dict(zip(table.index.names, label))
+            y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
+            err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
+            ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3, color=colours[keys["objective"]],
+                        linestyle="--" if keys["tuning"] == "default" else "-",
+                        label=f"{keys['objective']}, {keys['tuning']}")
+        noise_axis(ax, x, [n for n in x if n > 0], METRICS[metric], param)
+    axes[0, 0].legend(fontsize="small")
+    save_figure(fig, path, f"tuning: test split, K = {k}, mean ± std over seeds (dashed: default values)")
 
 
 def learning_curves_compared(curves: pd.DataFrame, path: Path, metric: str = "mean_rel_dev",

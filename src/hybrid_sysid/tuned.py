@@ -1,0 +1,154 @@
+"""``hybrid-sysid experiment=tuned``: each objective searched with the same budget, then its default and its
+best values trained on the seeds the table reports. Does tuning change the comparison of objectives?
+
+One job per objective (the sweep runs them side by side) does, in its own directory:
+
+- ``search/<n>``: ``tuned.n_trials`` trials of a seeded TPE study (optuna) over the space and sampler settings of
+  an hparams_search preset (``tuned.search``: conf/hparams_search/<name>.yaml), each trained as the runs below
+  are (without learning-curve points), on ``tuned.trial_seed``, and scored by its model-selection figure (val/loss for the hybrid
+  objective, which reads no labels; val/rel_dev for the others). Trial 0 is the model's default values, so the
+  best trial is never worse on validation than the untuned network. ``search/best.yaml`` and
+  ``search/trials.csv`` hold the study.
+- ``default/<seed>`` and ``tuned/<seed>``: the default values and the best trial's, trained with the
+  experiment's own trainer settings for each of ``tuned.seeds``.
+
+A sub-run's overrides are the job's plus ``tuning=default|tuned`` and its seed (a trial's: ``tuning=trial``, its
+number and values), so the sweep summary, which leaves ``*/search/*`` out, has one row per objective, tuning and
+K. The study lives in memory: a re-run asks the same seeded sampler, which proposes the same values, finds each
+completed trial's record and trains only what is missing.
+"""
+
+from __future__ import annotations
+
+import logging
+import warnings
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.chain import group, write_run_files
+from hybrid_sysid.config import ConfigError, validate
+from hybrid_sysid.files import write_atomic
+from hybrid_sysid.records import write_yaml_atomic
+from hybrid_sysid.train import train
+
+log = logging.getLogger("hybrid_sysid")
+SEARCH, DEFAULT, TUNED = "search", "default", "tuned"  # sub-directories of a job, and the values of ``tuning``
+
+
+def search_space(params) -> dict:
+    """Optuna distributions for a preset's ``hydra.sweeper.params`` (Hydra's sweep syntax, read by Hydra's own
+    parser): choice(...) is categorical; interval(a, b) is uniform, integer when a and b are, and log-uniform
+    when tagged log, as hydra-optuna-sweeper reads them."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
+    from optuna import distributions as d
+
+    parser, space = OverridesParser.create(), {}
+    for key, spec in params.items():
+        value = parser.parse_override(f"{key}={spec}").value()
+        if isinstance(value, ChoiceSweep):
+            space[key] = d.CategoricalDistribution(list(value.list))
+        elif isinstance(value, IntervalSweep):
+            ints, log_scale = isinstance(value.start, int) and isinstance(value.end, int), "log" in value.tags
+            kind = {(True, True): d.IntLogUniformDistribution, (True, False): d.IntUniformDistribution,
+                    (False, True): d.LogUniformDistribution, (False, False): d.UniformDistribution}[ints, log_scale]
+            space[key] = kind(value.start, value.end)
+        else:
+            raise ConfigError(f"tuned.search: hydra.sweeper.params.{key} = {spec!r} is not allowed: "
+                              "choice(...) or interval(a, b), optionally tag(log, interval(a, b))")
+    return space
+
+
+def defaults_in(cfg: DictConfig, space: dict) -> dict:
+    """The config's own values of the searched keys (trial 0); ConfigError for a key it lacks or a value outside
+    the space."""
+    out = {}
+    for key, dist in space.items():
+        value = OmegaConf.select(cfg, key, default=None)
+        inside = value in dist.choices if hasattr(dist, "choices") else \
+            isinstance(value, (int, float)) and dist.low <= value <= dist.high
+        if value is None or not inside:
+            raise ConfigError(f"{key} = {value!r} is not allowed with experiment=tuned: the search's first trial "
+                              f"is the config's own values, and this one lies outside {dist}")
+        out[key] = value
+    return out
+
+
+def with_values(cfg: DictConfig, values: dict, seed: int, extra=None) -> DictConfig:
+    """A copy of the config for one sub-run: no tuned block, ``extra`` merged (a preset's trainer settings), the
+    values set and the seed."""
+    out = OmegaConf.merge(cfg, {"tuned": None}, extra or {})
+    for key, value in values.items():
+        OmegaConf.update(out, key, value, merge=False)
+    out.seed = seed
+    return out
+
+
+def as_overrides(values: dict) -> list[str]:
+    return [f"{key}={value}" for key, value in values.items()]
+
+
+def run_sub(sub: DictConfig, run_dir: Path, overrides: list[str]) -> dict:
+    log.info("tuned: %s", " ".join(overrides))
+    write_run_files(run_dir, sub, overrides)
+    return train(sub, run_dir, overrides)
+
+
+def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
+    """The search, then the default and best values on each seed (module docstring). Returns a short record."""
+    import optuna
+
+    job_dir, t = Path(job_dir), cfg.tuned
+    preset = group("hparams_search", t.search, "tuned.search")
+    sweeper = preset.hydra.sweeper
+    space = search_space(sweeper.params)
+    trial_settings = {"trainer": {"curve_every_n_steps": None}}  # a trial is scored on validation alone
+    defaults = defaults_in(cfg, space)
+    if t.n_trials < 1:
+        raise ConfigError(f"tuned.n_trials = {t.n_trials} is not allowed: must be >= 1")
+    if not t.seeds:
+        raise ConfigError("tuned.seeds = [] is not allowed: give at least one seed, e.g. [0, 1, 2]")
+    validate(with_values(cfg, defaults, t.trial_seed, trial_settings))
+    validate(with_values(cfg, defaults, t.seeds[0]))
+    base = [o for o in job_overrides if not o.startswith("seed=")]
+
+    sampler = optuna.samplers.TPESampler(**{k: v for k, v in sweeper.sampler.items() if k != "_target_"})
+    study = optuna.create_study(direction=sweeper.direction, sampler=sampler, study_name=sweeper.study_name)
+    with warnings.catch_warnings():  # enqueue_trial is marked experimental in optuna 2.10
+        warnings.simplefilter("ignore")
+        study.enqueue_trial(defaults)
+    monitors = set()
+    for n in range(t.n_trials):
+        trial = study.ask(space)
+        overrides = base + ["tuning=trial", f"trial={n}"] + as_overrides(trial.params) + [f"seed={t.trial_seed}"]
+        sub = with_values(cfg, trial.params, t.trial_seed, trial_settings)
+        try:
+            record = run_sub(sub, job_dir / SEARCH / str(n), overrides)
+            score = record.get("best_score")
+            monitors.add(record.get("monitor"))
+        except Exception as exc:  # noqa: BLE001 - a trial that fails is a failed trial; the study goes on
+            log.error("tuned: trial %d failed: %s: %s", n, type(exc).__name__, exc)
+            score = None
+        if score is None:
+            study.tell(trial, state=optuna.trial.TrialState.FAIL)
+        else:
+            study.tell(trial, float(score))
+    done = [tr for tr in study.trials if tr.state == optuna.trial.TrialState.COMPLETE]
+    if not done:
+        raise RuntimeError(f"every one of the {t.n_trials} trials failed (records in {job_dir / SEARCH})")
+    best = study.best_trial
+    write_yaml_atomic(job_dir / SEARCH / "best.yaml", {
+        "overrides": base, "monitor": " / ".join(sorted(map(str, monitors))), "direction": sweeper.direction, "n_trials": t.n_trials, "completed": len(done),
+        "default": {"trial": 0, "value": study.trials[0].value, "params": defaults},
+        "best": {"trial": best.number, "value": best.value, "params": best.params}})
+    trials = study.trials_dataframe(attrs=("number", "value", "params", "state"))
+    write_atomic(job_dir / SEARCH / "trials.csv", lambda p: trials.to_csv(p, index=False))
+
+    runs = []
+    for tuning, values in ((DEFAULT, defaults), (TUNED, best.params)):
+        for seed in t.seeds:
+            run_dir = job_dir / tuning / str(seed)
+            run_sub(with_values(cfg, values, seed), run_dir, base + [f"tuning={tuning}", f"seed={seed}"])
+            runs.append(str(run_dir.relative_to(job_dir)))
+    return {"status": "completed", "best": best.params, "runs": runs}
