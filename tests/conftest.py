@@ -17,6 +17,24 @@ def make_cfg(tmp_path):
     return _make
 
 
+@pytest.fixture
+def poison_labels(monkeypatch):
+    """A call that replaces every label of the datasets loaded afterwards by garbage: a label-free run, its
+    model selection and its search must not notice."""
+    def _poison():
+        import numpy as np
+
+        import hybrid_sysid.data.datamodule as dm_module
+        real = dm_module.get_dataset
+
+        def poisoned(spec, cache_dir=None):
+            ds = real(spec, cache_dir)
+            ds.params = np.random.default_rng(1).uniform(1.0, 5000.0, ds.params.shape)
+            return ds
+        monkeypatch.setattr(dm_module, "get_dataset", poisoned)
+    return _poison
+
+
 @pytest.fixture(autouse=True)
 def _two_threads():
     import torch

@@ -14,7 +14,7 @@ LAYERS = [
     {"model", "baselines"},
     {"config", "train", "records", "callbacks", "tracking"},
     {"report"},
-    {"app", "estimator", "predict", "evaluate", "transfer", "__main__", "__init__"},
+    {"app", "estimator", "predict", "evaluate", "transfer", "tuned", "chain", "__main__", "__init__"},
 ]
 
 

@@ -85,6 +85,7 @@ def test_a_failing_job_is_a_row_and_the_sweep_exits_nonzero(tmp_path):
     assert "1 of 2 jobs failed" in proc.stderr + proc.stdout
 
 
+@pytest.mark.slow  # test_faults.py's interrupted sweep and test_tuned.py's sweep launch through joblib by default
 def test_joblib_launcher_runs_jobs_in_parallel_processes(tmp_path):
     proc = run_app(tmp_path, "-m", "launcher=joblib", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}")
     assert proc.returncode == 0, proc.stderr[-2000:]

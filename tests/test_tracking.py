@@ -93,5 +93,7 @@ def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
     assert app.missing_extra(["seed=1", "hparams_search=fast_cnn"]) == \
         'hparams_search=fast_cnn needs hydra-optuna-sweeper, which is not installed: pip install -e ".[search]"'
     assert "pip install -e \".[slurm]\"" in app.missing_extra(["launcher=slurm"])
+    assert app.missing_extra(["experiment=tuned"]) == \
+        'experiment=tuned needs optuna, which is not installed: pip install -e ".[search]"'
     monkeypatch.setattr(app, "_installed", lambda module: True)
     assert app.missing_extra(["hparams_search=fast_cnn", "launcher=slurm"]) is None

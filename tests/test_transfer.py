@@ -98,6 +98,9 @@ def test_evaluating_a_run_on_its_own_config_reproduces_its_metrics(source, tmp_p
     assert again["results"] == record["results"]  # exactly: same weights, windows and noise
     on_disk = json.loads((tmp_path / "eval" / "metrics.json").read_text())
     assert on_disk["source_run"] == str(run_dir) and on_disk["status"] == "completed"
+    stamp = (tmp_path / "eval" / "metrics.json").stat().st_mtime_ns
+    assert evaluate_run(cfg, run_dir, tmp_path / "eval", overrides=["run=x"]) == on_disk  # a re-run skips it
+    assert (tmp_path / "eval" / "metrics.json").stat().st_mtime_ns == stamp
 
 
 def test_evaluation_on_another_car_changes_the_labels_not_the_network(source, tmp_path):
@@ -109,7 +112,7 @@ def test_evaluation_on_another_car_changes_the_labels_not_the_network(source, tm
     np.testing.assert_allclose(pred.p1_true, 615.0 * 1.12 / pred.m3, rtol=1e-6)  # the target's labels
 
 
-def adapt(source_dir, tmp_path, name, poison=False, monkeypatch=None):
+def adapt(source_dir, tmp_path, name, poison=None):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
@@ -117,24 +120,17 @@ def adapt(source_dir, tmp_path, name, poison=False, monkeypatch=None):
         cfg = compose(config_name="config", overrides=[
             *TINY, f"data.cache_dir={tmp_path / 'cache'}", "trainer.progress_bar=false", "objective=hybrid",
             "car=soft_seat", f"init_from={source_dir}", "model.optim.lr=5e-3"])
-    if poison:  # the target's labels replaced by garbage: a label-free adaptation must not notice
-        import hybrid_sysid.data.datamodule as dm_module
-        real = dm_module.get_dataset
-
-        def poisoned(spec, cache_dir=None):
-            ds = real(spec, cache_dir)
-            ds.params = np.random.default_rng(1).uniform(1.0, 5000.0, ds.params.shape)
-            return ds
-        monkeypatch.setattr(dm_module, "get_dataset", poisoned)
+    if poison is not None:  # the target's labels replaced by garbage: a label-free adaptation must not notice
+        poison()
     record = train(cfg, tmp_path / name, overrides=[])
     state = torch.load(tmp_path / name / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]
     return record, state
 
 
-def test_adaptation_starts_from_the_source_and_never_reads_labels(source, tmp_path, monkeypatch):
+def test_adaptation_starts_from_the_source_and_never_reads_labels(source, tmp_path, poison_labels):
     _, _, run_dir = source
     clean, weights = adapt(run_dir, tmp_path, "clean")
-    poisoned, weights_poisoned = adapt(run_dir, tmp_path, "poisoned", poison=True, monkeypatch=monkeypatch)
+    poisoned, weights_poisoned = adapt(run_dir, tmp_path, "poisoned", poison=poison_labels)
     assert clean["init_from"] == str(run_dir) and clean["monitor"] == "val/loss"
     assert weights.keys() == weights_poisoned.keys()
     for key in weights:

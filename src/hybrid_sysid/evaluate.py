@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid import config
 from hybrid_sysid.config import Config, ConfigError
-from hybrid_sysid.records import RECORD, run_record, write_json_atomic, write_yaml_atomic
+from hybrid_sysid.records import RECORD, completed_record, run_record, write_json_atomic, write_yaml_atomic
 
 log = logging.getLogger("hybrid_sysid")
 # keys an evaluation may change; anything else the run trained with stays
@@ -80,7 +80,8 @@ def hydra_main(composed: DictConfig) -> dict:
     except Exception as exc:  # as hybrid_sysid.app: the failure is recorded where the sweep summary looks
         error = f"{type(exc).__name__}: {exc}"
         out_dir.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(out_dir / RECORD, run_record("failed", overrides, composed.get("seed", 0), error=error))
+        if completed_record(out_dir) is None:  # a completed record is never replaced
+            write_json_atomic(out_dir / RECORD, run_record("failed", overrides, composed.get("seed", 0), error=error))
         if multirun:
             log.error("job failed: %s", error)
             return {"status": "failed", "error": error}

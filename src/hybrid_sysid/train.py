@@ -307,6 +307,10 @@ def evaluate_run(cfg: DictConfig, source: str | Path, run_dir: str | Path, overr
                           f"{cfg.model.net._target_}) has no trained network to evaluate")
     model = build_model(cfg)
     checkpoint = load_network(model, cfg, source, "run")
+    done = previous_record(run_dir, overrides)
+    if done is not None:  # a re-run sweep skips what it evaluated
+        log.info("evaluation %s already completed; not evaluating it again", run_dir)
+        return done
     run_dir.mkdir(parents=True, exist_ok=True)
     if cfg.trainer.get("threads"):
         torch.set_num_threads(int(cfg.trainer.threads))

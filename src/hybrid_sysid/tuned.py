@@ -29,7 +29,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.chain import group, write_run_files
 from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.files import write_atomic
-from hybrid_sysid.records import write_yaml_atomic
+from hybrid_sysid.records import completed_record, run_record, write_record, write_yaml_atomic
 from hybrid_sysid.train import train
 
 log = logging.getLogger("hybrid_sysid")
@@ -123,12 +123,16 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
         trial = study.ask(space)
         overrides = base + ["tuning=trial", f"trial={n}"] + as_overrides(trial.params) + [f"seed={t.trial_seed}"]
         sub = with_values(cfg, trial.params, t.trial_seed, trial_settings)
+        run_dir = job_dir / SEARCH / str(n)
         try:
-            record = run_sub(sub, job_dir / SEARCH / str(n), overrides)
+            record = run_sub(sub, run_dir, overrides)
             score = record.get("best_score")
             monitors.add(record.get("monitor"))
         except Exception as exc:  # noqa: BLE001 - a trial that fails is a failed trial; the study goes on
-            log.error("tuned: trial %d failed: %s: %s", n, type(exc).__name__, exc)
+            error = f"{type(exc).__name__}: {exc}"
+            log.error("tuned: trial %d failed: %s", n, error)
+            if completed_record(run_dir) is None:
+                write_record(run_dir, run_record("failed", overrides, t.trial_seed, error=error))
             score = None
         if score is None:
             study.tell(trial, state=optuna.trial.TrialState.FAIL)
@@ -139,7 +143,8 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
         raise RuntimeError(f"every one of the {t.n_trials} trials failed (records in {job_dir / SEARCH})")
     best = study.best_trial
     write_yaml_atomic(job_dir / SEARCH / "best.yaml", {
-        "overrides": base, "monitor": " / ".join(sorted(map(str, monitors))), "direction": sweeper.direction, "n_trials": t.n_trials, "completed": len(done),
+        "overrides": base, "monitor": " / ".join(sorted(map(str, monitors))), "direction": sweeper.direction,
+        "n_trials": t.n_trials, "completed": len(done),
         "default": {"trial": 0, "value": study.trials[0].value, "params": defaults},
         "best": {"trial": best.number, "value": best.value, "params": best.params}})
     trials = study.trials_dataframe(attrs=("number", "value", "params", "state"))

@@ -117,3 +117,16 @@ def test_a_resumed_stream_continues_where_the_checkpoint_left_it(steps, accumula
     for want, got in zip(uninterrupted[taken:], resumed):
         assert torch.equal(got["index"], want["index"]) and torch.equal(got["signals"], want["signals"])
     assert not torch.equal(resumed[0]["signals"], uninterrupted[0]["signals"])
+
+
+@pytest.mark.parametrize("cached", [False, True])
+def test_simulating_the_data_leaves_torchs_thread_count_as_the_run_set_it(tmp_path, cached):
+    """The simulation's parallel kernel shares an OpenMP runtime with torch; a run that pins one thread must
+    still train on one thread after simulating (cold cache) as after loading (warm cache)."""
+    if cached:
+        QCMDataModule(SPEC, window=100, batch_size=8, cache_dir=tmp_path).prepare_data()
+    torch.set_num_threads(1)  # the autouse fixture in conftest.py restores the count after the test
+    dm = QCMDataModule(SPEC, window=100, batch_size=8, cache_dir=tmp_path)
+    dm.prepare_data()
+    dm.setup("fit")
+    assert torch.get_num_threads() == 1

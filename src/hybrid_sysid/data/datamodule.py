@@ -230,13 +230,22 @@ class QCMDataModule(L.LightningDataModule):
         self._eval_cache: dict = {}
 
     def prepare_data(self) -> None:
-        get_dataset(self.spec, self.cache_dir)  # simulate and cache once
+        self._get_dataset()  # simulate and cache once
 
     def setup(self, stage: str | None = None) -> None:
         if self.data is None:
-            self.dataset = get_dataset(self.spec, self.cache_dir)
+            self.dataset = self._get_dataset()
             self.data = QCMData(self.dataset, self.window, self.integration, self.fir)
             self.train_windows = RandomWindows(self.data, self.split.train, self.batch_size, self.seed, self.train_std)
+
+    def _get_dataset(self) -> QCMDataset:
+        # simulating runs numba's parallel kernel, whose OpenMP runtime torch shares: it leaves torch at numba's
+        # thread count (all cores). Put back the run's own, which its numbers depend on (docs/reliability.md)
+        threads = torch.get_num_threads()
+        try:
+            return get_dataset(self.spec, self.cache_dir)
+        finally:
+            torch.set_num_threads(threads)
 
     def rows(self, split: str) -> np.ndarray:
         return getattr(self.split, split)

@@ -53,16 +53,18 @@ def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "me
     cells = [c for c in table.columns if c[2] == "mean"]
     params = sorted({p for _, p, _ in cells})
     fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
-    colours = {o: f"C{i}" for i, o in enumerate(dict.fromkeys(table.index.get_level_values("objective")))}
+    # with one objective swept it is no row level: one colour
+    rows = [{"objective": "", **dict(zip(table.index.names, label if isinstance(label, tuple) else (label,)))}
+            for label in table.index]
+    colours = {o: f"C{i}" for i, o in enumerate(dict.fromkeys(r["objective"] for r in rows))}
     for ax, param in zip(axes[0], params):
         x = sorted(n for n, p, _ in cells if p == param)
-        for label, row in table.iterrows():
-            keys = dict(zip(table.index.names, label))
+        for keys, (_, row) in zip(rows, table.iterrows()):
             y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
             err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
             ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3, color=colours[keys["objective"]],
                         linestyle="--" if keys["tuning"] == "default" else "-",
-                        label=f"{keys['objective']}, {keys['tuning']}")
+                        label=", ".join(v for v in (keys["objective"], keys["tuning"]) if v))
         noise_axis(ax, x, [n for n in x if n > 0], METRICS[metric], param)
     axes[0, 0].legend(fontsize="small")
     save_figure(fig, path, f"tuning: test split, K = {k}, mean ± std over seeds (dashed: default values)")
