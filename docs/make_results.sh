@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Re-run every sweep behind docs/results.md (about two hours on two CPU cores), then regenerate the page.
+# Re-run every sweep behind docs/results.md (about two and a half hours on two CPU cores), then regenerate the page.
 # With the sweeps already on disk, only the last command is needed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -20,6 +20,7 @@ hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01
 hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.0 hydra.sweep.dir=$out/noise_robust_paper_clean
 hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01 objective=hybrid \
   hydra.sweep.dir=$out/noise_robust_paper_hybrid
+hybrid-sysid experiment=tuned hydra.sweep.dir=$out/tuned   # pip install -e ".[search]"
 hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
   $out/paper $out/transfer $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
-  --results docs/results.md --notes docs/results_notes.md --reproduction
+  $out/tuned --exclude '*/search/*' --results docs/results.md --notes docs/results_notes.md --reproduction

@@ -18,6 +18,7 @@ import logging
 import os
 import signal
 import sys
+import threading
 import traceback
 from contextlib import contextmanager
 from pathlib import Path
@@ -218,6 +219,11 @@ def hydra_main(cfg: DictConfig) -> dict | float | None:
     overrides = list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
     seed = cfg.get("seed", 0)
+    if multirun and threading.current_thread() is threading.main_thread():
+        # a parallel worker (or the basic launcher's own process): between its jobs a signal must not kill it,
+        # or the launcher drops the jobs not yet started; remembered, it makes them record their interruption
+        for s in SIGNALS:
+            signal.signal(s, _stop_sweep)
     searching = "optuna" in str(hc.sweeper.get("_target_", ""))
     # in a tracker, a sweep's jobs are runs of one experiment named after the sweep directory
     experiment = Path(hc.sweep.dir).name if multirun else None

@@ -19,8 +19,8 @@ from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.paper import LEGEND, comparison_markdown
 from hybrid_sysid.report.protocol import one_line, protocol
-from hybrid_sysid.report.summary import failed_lines, windows_note
-from hybrid_sysid.report.tables import METRICS, summary_table, to_markdown
+from hybrid_sysid.report.summary import failed_lines, tested_table, windows_note
+from hybrid_sysid.report.tables import METRICS, to_markdown
 from hybrid_sysid.report.tuning import tuning_markdown
 
 
@@ -54,7 +54,7 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
     n_all, n_bad, used = 0, 0, set()
     for path in map(Path, paths):
         root, df = load_runs(path, exclude)
-        table = summary_table(df, split=split, metric=metric)
+        table = tested_table(df, root, split, metric)
         title, slug = _title(df, path)
         base, i = slug, 2
         while slug in used:

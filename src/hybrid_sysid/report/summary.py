@@ -57,6 +57,16 @@ def _curves(df: pd.DataFrame, root: Path) -> pd.DataFrame:
     return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame()
 
 
+def tested_table(df: pd.DataFrame, root: Path, split: str = "test", metric: str = "mean_rel_dev") -> pd.DataFrame:
+    """summary_table of collect's long form, with attrs["paired"]: the per-recording deviations its marks test
+    (tables.paired_deviations; read from the runs' predictions.csv under root) when the metric is
+    mean_rel_dev."""
+    table = summary_table(df, split=split, metric=metric)
+    if metric == "mean_rel_dev":
+        table.attrs["paired"] = paired_deviations(load_predictions(root, df, split), df, table)
+    return table
+
+
 def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mean_rel_dev", figures: bool = True,
                   latex: bool = False, compare: str | None = None, exclude=()) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Write sweep_dir/summary.csv, summary.md, with ``latex`` summary.tex, and figures/ from the runs at or
@@ -66,10 +76,8 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
     deviations its marks test (tables.paired_deviations)."""
     sweep_dir = Path(sweep_dir)
     root, df = load_runs(sweep_dir if paths is None else paths, exclude)
-    table = summary_table(df, split=split, metric=metric)
+    table = tested_table(df, root, split, metric)
     compared_level(table, compare)  # a bad compare key fails before anything is written
-    if metric == "mean_rel_dev":  # the paired test compares per-recording deviations (tables.compare_marks)
-        table.attrs["paired"] = paired_deviations(load_predictions(root, df, split), df, table)
     runs = df.drop_duplicates("run")
     n_bad = int((runs.status != "completed").sum())
     md = [f"# Sweep summary: {METRICS[metric]} on the {split} split [%]", "",
