@@ -109,7 +109,7 @@ class TunedConfig:
     """experiment=tuned (hybrid_sysid.tuned): each objective searched with the same budget, then trained with its
     default and its best values on several seeds."""
 
-    search: str = "fast_cnn"  # the hparams_search preset whose space, sampler and trial training the study uses
+    search: str = "fast_cnn"  # the hparams_search preset whose space and sampler the study uses
     n_trials: int = 12  # per objective; trial 0 is the model's default values
     trial_seed: int = 1000  # the trials' seed, apart from the seeds the table reports
     seeds: List[int] = field(default_factory=lambda: [0, 1, 2])
