@@ -206,8 +206,10 @@ def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
 
 @pytest.mark.integration
 @pytest.mark.integration
-def test_importing_physics_does_not_load_torch():
-    code = ("import sys, hybrid_sysid.physics; assert 'torch' not in sys.modules, 'torch loaded'; "
+def test_importing_physics_or_the_app_does_not_load_torch():
+    # the app's process composes and checks the config (and a sweep's parent launches jobs) without torch, so a
+    # refused value comes back in a second
+    code = ("import sys, hybrid_sysid.physics, hybrid_sysid.app; assert 'torch' not in sys.modules, 'torch loaded'; "
             "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "
             "import hybrid_sysid; getattr(hybrid_sysid, 'nothing')")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

@@ -81,6 +81,7 @@ def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_faile
     assert "a failing trial" in summary
 
 
+@pytest.mark.slow  # by default: test_tuned.py's hybrid search (same TPE, same val/loss) with poisoned labels
 def test_a_hybrid_search_never_reads_labels(tmp_path):
     script = tmp_path / "poisoned.py"
     script.write_text(POISONED)

@@ -21,9 +21,8 @@ from hydra.core.config_store import ConfigStore
 from omegaconf import MISSING, DictConfig, OmegaConf
 
 from hybrid_sysid.data import DatasetSpec, split_by_road
-from hybrid_sysid.data.datamodule import INTEGRATIONS
-from hybrid_sysid.data.dataset import CHANNELS
-from hybrid_sysid.model.objectives import WEIGHTINGS, filter_taps
+from hybrid_sysid.data.dataset import CHANNELS, INTEGRATIONS
+from hybrid_sysid.physics.filters import WEIGHTINGS, filter_taps
 from hybrid_sysid.physics import DEFAULT_MEASUREMENT, QuarterCar
 
 CONF_DIR = str(Path(__file__).resolve().parent / "conf")  # inside the package, so an installed wheel has it

@@ -24,7 +24,7 @@ from hybrid_sysid.data.datamodule import QCMDataModule
 from hybrid_sysid.files import write_atomic
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.model.module import LOG_EVERY, ParameterEstimator
-from hybrid_sysid.model.objectives import filter_taps
+from hybrid_sysid.physics.filters import filter_taps
 from hybrid_sysid.records import RECORD, previous_record, run_record, write_record
 from hybrid_sysid.tracking import build_loggers, finish, hyperparameters
 

@@ -9,12 +9,10 @@ import numpy as np
 import torch
 from torch.utils.data import DataLoader, IterableDataset
 
-from hybrid_sysid.data.dataset import DatasetSpec, QCMDataset, get_dataset
+from hybrid_sysid.data.dataset import INTEGRATIONS, DatasetSpec, QCMDataset, get_dataset
 from hybrid_sysid.data.splits import SPLITS, split_by_road
 from hybrid_sysid.physics import integrate, relative_states
 from hybrid_sysid.physics.filters import fir_valid
-
-INTEGRATIONS = ("t0", "window")
 
 
 def _windows(arr: np.ndarray, window: int) -> np.ndarray:

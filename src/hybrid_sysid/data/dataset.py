@@ -28,6 +28,9 @@ log = logging.getLogger(__name__)
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 3  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording
 CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
+# data.integration: how the data module re-integrates a window's sensor noise (QCMData); here, beside the
+# dataset, so the config checks it without loading torch
+INTEGRATIONS = ("t0", "window")
 
 
 @dataclass(frozen=True)

@@ -17,25 +17,9 @@ from torch import nn
 
 from hybrid_sysid.model.checks import check_pair
 from hybrid_sysid.physics import relative_states
-from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
+from hybrid_sysid.physics.filters import WEIGHTINGS, filter_taps
 
 _NORMS = ("l1", "l2")
-WEIGHTINGS = ("none", "eiv")
-FILTER_KEYS = ("low_hz", "high_hz", "taps")
-
-
-def filter_taps(filter: dict, dt: float) -> np.ndarray:
-    """The band-pass of ``objective.filter`` ({low_hz, high_hz, taps}) at the data's dt: the baseline's FIR."""
-    unknown = sorted(set(filter) - set(FILTER_KEYS))
-    if unknown:
-        raise ValueError(f"objective.filter.{unknown[0]} is not allowed: the keys are {', '.join(FILTER_KEYS)}")
-    missing = [k for k in FILTER_KEYS if k not in filter]
-    if missing:
-        raise ValueError(f"objective.filter.{missing[0]} is missing: give {', '.join(FILTER_KEYS)}")
-    check_bandpass(filter["low_hz"], filter["high_hz"], filter["taps"], dt, prefix="objective.filter")
-    return bandpass_taps(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
-
-
 def noise_gram(fir: np.ndarray, dt: float, measurement: str) -> np.ndarray:
     """(3, 3) G with Var(filtered residual) = sigma^2 (1, p1, p2) G (1, p1, p2)^T under white noise of std sigma
     on both channels, the residual being seat_f + p1 rel_vel_f + p2 rel_disp_f.

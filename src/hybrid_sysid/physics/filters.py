@@ -61,6 +61,24 @@ def bandpass_taps(low_hz: float, high_hz: float, taps: int, dt: float) -> np.nda
     return _lowpass(high_hz * dt, n, window) - _lowpass(low_hz * dt, n, window)
 
 
+# objective.weighting and objective.filter's keys (hybrid_sysid.model.objectives; checked by the config too,
+# which loads no torch)
+WEIGHTINGS = ("none", "eiv")
+FILTER_KEYS = ("low_hz", "high_hz", "taps")
+
+
+def filter_taps(filter: dict, dt: float) -> np.ndarray:
+    """The band-pass of ``objective.filter`` ({low_hz, high_hz, taps}) at the data's dt: the baseline's FIR."""
+    unknown = sorted(set(filter) - set(FILTER_KEYS))
+    if unknown:
+        raise ValueError(f"objective.filter.{unknown[0]} is not allowed: the keys are {', '.join(FILTER_KEYS)}")
+    missing = [k for k in FILTER_KEYS if k not in filter]
+    if missing:
+        raise ValueError(f"objective.filter.{missing[0]} is missing: give {', '.join(FILTER_KEYS)}")
+    check_bandpass(filter["low_hz"], filter["high_hz"], filter["taps"], dt, prefix="objective.filter")
+    return bandpass_taps(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
+
+
 def fir_valid(x: np.ndarray, h: np.ndarray) -> np.ndarray:
     """Convolve every row of x (..., T) with h (L,) along the last axis, keeping only the T - L + 1 samples
     that see no edge ('valid' mode). By FFT, float64, vectorised over the leading axes."""
