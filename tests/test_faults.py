@@ -54,11 +54,16 @@ def same_numbers(a, b):
 
 
 @pytest.fixture(scope="module")
-def uninterrupted(tmp_path_factory):
+def reference_run(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("reference")
     proc = run_app(tmp, *ARGS, f"hydra.run.dir={tmp / 'run'}")
     assert proc.returncode == 0, proc.stderr[-2000:]
-    return record(tmp / "run")
+    return tmp / "run"
+
+
+@pytest.fixture(scope="module")
+def uninterrupted(reference_run):
+    return record(reference_run)
 
 
 def interrupt(tmp_path, run, how):
@@ -102,6 +107,23 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     same_numbers(uninterrupted, record(moved))
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
+
+
+def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, reference_run):
+    out = tmp_path / "eval"
+    # the default data: simulating it (an empty cache) outlasts the signal's way there
+    cli = [sys.executable, "-m", "hybrid_sysid.evaluate", f"run={reference_run}", "data=default",
+           f"hydra.run.dir={out}"]
+    proc = subprocess.Popen(cli, cwd=tmp_path, env=env_for(tmp_path), stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True)
+    wait_for(out / ".hydra" / "config.yaml", proc)
+    proc.send_signal(signal.SIGTERM)
+    text, _ = proc.communicate(timeout=600)
+    assert proc.returncode == 128 + signal.SIGTERM, text[-3000:]
+    assert record(out)["status"] == "interrupted" and "SIGTERM" in record(out)["error"]
+    again = subprocess.run(cli, cwd=tmp_path, env=env_for(tmp_path), capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert record(out)["status"] == "completed" and record(out)["source_run"] == str(reference_run)
 
 
 def sweep_statuses(sw):

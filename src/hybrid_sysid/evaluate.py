@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import logging
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -21,6 +22,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid import config
+from hybrid_sysid.app import Interrupted, interruptible
 from hybrid_sysid.config import Config, ConfigError
 from hybrid_sysid.records import RECORD, completed_record, run_record, write_json_atomic, write_yaml_atomic
 
@@ -66,22 +68,29 @@ def hydra_main(composed: DictConfig) -> dict:
     out_dir = Path(hc.runtime.output_dir)
     overrides = list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
+    seed = composed.get("seed", 0)
     try:
-        from hybrid_sysid.report.run_figures import write_run_figures
-        from hybrid_sysid.train import evaluate_run
+        with interruptible():
+            from hybrid_sysid.report.run_figures import write_run_figures
+            from hybrid_sysid.train import evaluate_run
 
-        source = Path(composed.run)
-        cfg = evaluation_config(source, composed, overrides)
-        out_dir.mkdir(parents=True, exist_ok=True)
-        write_yaml_atomic(out_dir / ".hydra" / "config.yaml", OmegaConf.to_container(cfg))
-        record = evaluate_run(cfg, source, out_dir, overrides)
+            source = Path(composed.run)
+            cfg = evaluation_config(source, composed, overrides)
+            out_dir.mkdir(parents=True, exist_ok=True)
+            write_yaml_atomic(out_dir / ".hydra" / "config.yaml", OmegaConf.to_container(cfg))
+            record = evaluate_run(cfg, source, out_dir, overrides)
         write_run_figures(out_dir)
         return record
+    except Interrupted as exc:  # as hybrid_sysid.app: recorded, and a re-run evaluates it again
+        name = signal.Signals(exc.signum).name
+        _record(out_dir, run_record("interrupted", overrides, seed, error=f"interrupted by {name}"))
+        log.error("%s: interrupted by %s; run the same command again to evaluate it", out_dir, name)
+        if not multirun:
+            sys.exit(128 + exc.signum)
+        return {"status": "interrupted", "error": f"interrupted by {name}"}
     except Exception as exc:  # as hybrid_sysid.app: the failure is recorded where the sweep summary looks
         error = f"{type(exc).__name__}: {exc}"
-        out_dir.mkdir(parents=True, exist_ok=True)
-        if completed_record(out_dir) is None:  # a completed record is never replaced
-            write_json_atomic(out_dir / RECORD, run_record("failed", overrides, composed.get("seed", 0), error=error))
+        _record(out_dir, run_record("failed", overrides, seed, error=error))
         if multirun:
             log.error("job failed: %s", error)
             return {"status": "failed", "error": error}
@@ -89,6 +98,13 @@ def hydra_main(composed: DictConfig) -> dict:
             print(f"error: {exc}", file=sys.stderr)
             sys.exit(2)
         raise
+
+
+def _record(out_dir: Path, record: dict) -> None:
+    """A failed or interrupted evaluation's record; a completed record is never replaced."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    if completed_record(out_dir) is None:
+        write_json_atomic(out_dir / RECORD, record)
 
 
 def main() -> None:
