@@ -116,7 +116,10 @@ def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, r
            f"hydra.run.dir={out}"]
     proc = subprocess.Popen(cli, cwd=tmp_path, env=env_for(tmp_path), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)
-    wait_for(out / ".hydra" / "config.yaml", proc)
+    deadline = time.time() + 600  # until the evaluation locks the dataset cache to simulate the data
+    while not any((tmp_path / "cache").glob("*.lock")) and proc.poll() is None and time.time() < deadline:
+        time.sleep(0.05)
+    assert proc.poll() is None, "the evaluation ended before the signal could be sent"
     proc.send_signal(signal.SIGTERM)
     text, _ = proc.communicate(timeout=600)
     assert proc.returncode == 128 + signal.SIGTERM, text[-3000:]

@@ -108,9 +108,13 @@ def _record(out_dir: Path, record: dict) -> None:
 
 
 def main() -> None:
-    """Console script; exit status 2 for a config that does not compose, as hybrid-sysid."""
+    """Console script; exit status 2 for a config that does not compose, as hybrid-sysid, and 128 + the signal's
+    number for SIGTERM or SIGINT (before the evaluation starts there is nothing to record)."""
     try:
-        hydra_main()
+        with interruptible():
+            hydra_main()
+    except Interrupted as exc:
+        sys.exit(128 + exc.signum)
     except SystemExit as exc:
         if exc.code == 1 and not _task_started:
             sys.exit(2)
