@@ -231,7 +231,7 @@ def hydra_main(cfg: DictConfig) -> dict | float | None:
     sweep_dir = Path(hc.sweep.dir) if multirun else None
     if _stopped(sweep_dir):  # a signal came while Hydra composed and launched: do not start
         name = signal.Signals(_received).name if _received else "the sweep's interruption"
-        result = _record_end(run_dir, overrides, seed, "interrupted", f"not started: interrupted by {name}")
+        result = record_end(run_dir, overrides, seed, "interrupted", f"not started: interrupted by {name}")
         if not multirun:
             sys.exit(128 + _received)
         return None if searching else result
@@ -254,7 +254,7 @@ def hydra_main(cfg: DictConfig) -> dict | float | None:
             return None if searching else result
         except Exception as exc:  # record the failure where the sweep summary will look for it
             error = f"{type(exc).__name__}: {exc}"
-            _record_end(run_dir, overrides, seed, "failed", error)
+            record_end(run_dir, overrides, seed, "failed", error)
             if multirun:  # let the other jobs run; the sweep summary exits non-zero
                 log.error("job failed: %s", error)
                 return None if searching else {"status": "failed", "error": error}
@@ -278,7 +278,7 @@ def _draw_figures(run_dir: Path) -> None:
         log.warning("run figures not drawn in %s: %s: %s", run_dir, type(exc).__name__, exc)
 
 
-def _record_end(run_dir: Path, overrides, seed, status: str, error: str) -> dict:
+def record_end(run_dir: Path, overrides, seed, status: str, error: str) -> dict:
     """Record a failed or interrupted job, unless the directory holds a completed run (never replaced). A record
     that cannot be written (a full disk) is reported on one line instead."""
     if completed_record(run_dir) is None:
@@ -293,7 +293,7 @@ def _record_end(run_dir: Path, overrides, seed, status: str, error: str) -> dict
 
 def _interrupted(run_dir: Path, overrides, seed, signum: int, sweep_dir: Path | None) -> dict:
     name = signal.Signals(signum).name
-    result = _record_end(run_dir, overrides, seed, "interrupted", f"interrupted by {name}")
+    result = record_end(run_dir, overrides, seed, "interrupted", f"interrupted by {name}")
     log.error("%s: interrupted by %s; continue it with resume=%s (a sweep: run the same command again)",
               run_dir, name, run_dir)
     if sweep_dir is None:

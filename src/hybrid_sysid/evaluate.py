@@ -22,9 +22,9 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid import config
-from hybrid_sysid.app import Interrupted, interruptible
+from hybrid_sysid.app import Interrupted, interruptible, record_end
 from hybrid_sysid.config import Config, ConfigError
-from hybrid_sysid.records import RECORD, completed_record, run_record, write_json_atomic, write_yaml_atomic
+from hybrid_sysid.records import write_yaml_atomic
 
 log = logging.getLogger("hybrid_sysid")
 # keys an evaluation may change; anything else the run trained with stays
@@ -83,14 +83,14 @@ def hydra_main(composed: DictConfig) -> dict:
         return record
     except Interrupted as exc:  # as hybrid_sysid.app: recorded, and a re-run evaluates it again
         name = signal.Signals(exc.signum).name
-        _record(out_dir, run_record("interrupted", overrides, seed, error=f"interrupted by {name}"))
+        result = record_end(out_dir, overrides, seed, "interrupted", f"interrupted by {name}")
         log.error("%s: interrupted by %s; run the same command again to evaluate it", out_dir, name)
         if not multirun:
             sys.exit(128 + exc.signum)
-        return {"status": "interrupted", "error": f"interrupted by {name}"}
+        return result
     except Exception as exc:  # as hybrid_sysid.app: the failure is recorded where the sweep summary looks
         error = f"{type(exc).__name__}: {exc}"
-        _record(out_dir, run_record("failed", overrides, seed, error=error))
+        record_end(out_dir, overrides, seed, "failed", error)
         if multirun:
             log.error("job failed: %s", error)
             return {"status": "failed", "error": error}
@@ -98,13 +98,6 @@ def hydra_main(composed: DictConfig) -> dict:
             print(f"error: {exc}", file=sys.stderr)
             sys.exit(2)
         raise
-
-
-def _record(out_dir: Path, record: dict) -> None:
-    """A failed or interrupted evaluation's record; a completed record is never replaced."""
-    out_dir.mkdir(parents=True, exist_ok=True)
-    if completed_record(out_dir) is None:
-        write_json_atomic(out_dir / RECORD, record)
 
 
 def main() -> None:

@@ -26,10 +26,11 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.app import record_end
 from hybrid_sysid.chain import group, write_run_files
 from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.files import write_atomic
-from hybrid_sysid.records import completed_record, run_record, write_record, write_yaml_atomic
+from hybrid_sysid.records import write_yaml_atomic
 from hybrid_sysid.train import train
 
 log = logging.getLogger("hybrid_sysid")
@@ -131,8 +132,7 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
         except Exception as exc:  # noqa: BLE001 - a trial that fails is a failed trial; the study goes on
             error = f"{type(exc).__name__}: {exc}"
             log.error("tuned: trial %d failed: %s", n, error)
-            if completed_record(run_dir) is None:
-                write_record(run_dir, run_record("failed", overrides, t.trial_seed, error=error))
+            record_end(run_dir, overrides, t.trial_seed, "failed", error)
             score = None
         if score is None:
             study.tell(trial, state=optuna.trial.TrialState.FAIL)
