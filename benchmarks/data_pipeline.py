@@ -22,8 +22,8 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from hybrid_sysid.config import CONF_DIR
-from hybrid_sysid.data.datamodule import gather
-from hybrid_sysid.train import build_datamodule
+from hybrid_sysid.data.windows import gather
+from hybrid_sysid.training.build import build_datamodule
 
 
 def per_sample_loop(arrays, rows, starts, window):

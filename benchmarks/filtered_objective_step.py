@@ -17,7 +17,7 @@ import torch
 from hydra import compose, initialize_config_dir
 
 from hybrid_sysid.config import CONF_DIR
-from hybrid_sysid.train import build_datamodule, build_model
+from hybrid_sysid.training.build import build_datamodule, build_model
 
 OBJECTIVES = ("hybrid", "hybrid_bandpass", "hybrid_eiv")
 

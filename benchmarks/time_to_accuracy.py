@@ -16,7 +16,7 @@ import pandas as pd
 from hydra import compose, initialize_config_dir
 
 from hybrid_sysid.config import CONF_DIR
-from hybrid_sysid.train import train
+from hybrid_sysid.training.run import train
 
 PAPER = {"p1": 0.060, "p2": 0.042}  # the paper's labelled clean-test figures (sec. 3.1)
 

@@ -1,5 +1,5 @@
 """Training throughput: the same model, batches and steps through a plain PyTorch loop and through the
-project's Trainer path (ParameterEstimator with Lightning's automatic optimisation + QCMDataModule + the run's
+project's Trainer path (IdentificationModule with Lightning's automatic optimisation + QuarterCarDataModule + the run's
 lightning.Trainer and training clock), timed in one script.
 
     python benchmarks/training_throughput.py [--steps 600] [--tiny] [overrides...]               # interleaved
@@ -29,10 +29,10 @@ import torch
 from hydra import compose, initialize_config_dir
 from hydra.utils import instantiate
 
-from hybrid_sysid.callbacks import TrainingClock
+from hybrid_sysid.training.callbacks import TrainingClock
 from hybrid_sysid.config import CONF_DIR
-from hybrid_sysid.model.module import ParameterEstimator
-from hybrid_sysid.train import build_datamodule, build_model, build_trainer
+from hybrid_sysid.model.module import IdentificationModule
+from hybrid_sysid.training.build import build_datamodule, build_model, build_trainer
 
 
 class TinyNet(torch.nn.Module):
@@ -45,7 +45,7 @@ class TinyNet(torch.nn.Module):
 
 
 def tiny_model(cfg):
-    return ParameterEstimator(TinyNet(), instantiate(cfg.objective, _convert_="all"),
+    return IdentificationModule(TinyNet(), instantiate(cfg.objective, _convert_="all"),
                               max_steps=cfg.trainer.max_steps)
 
 

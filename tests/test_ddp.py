@@ -12,20 +12,20 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.datamodule import QCMDataModule, RandomWindows
+from hybrid_sysid.data.datamodule import QuarterCarDataModule, RandomWindows
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 
 
 def stream(rank):
-    dm = QCMDataModule(SPEC, window=100, batch_size=8, train_std=0.01)
+    dm = QuarterCarDataModule(SPEC, window=100, batch_size=8, train_std=0.01)
     dm.setup("fit")
     s = dm.train_windows
     return RandomWindows(s.data, s.rows, s.batch_size, s.seed, s.noise_std, rank=rank)
 
 
 def test_rank_zero_draws_the_one_device_stream_and_other_ranks_their_own():
-    dm = QCMDataModule(SPEC, window=100, batch_size=8, train_std=0.01)
+    dm = QuarterCarDataModule(SPEC, window=100, batch_size=8, train_std=0.01)
     dm.setup("fit")
     one_device, r0, r1 = (list(islice(iter(s), 10)) for s in (dm.train_windows, stream(0), stream(1)))
     for a, b, c in zip(one_device, r0, r1):
@@ -50,7 +50,7 @@ RECORDING = textwrap.dedent("""
                                         "first": batch["signals"][:, 0, 0].tolist()}) + "\\n")
             yield batch
     datamodule.RandomWindows.one_pass = recorded
-    from hybrid_sysid.app import main
+    from hybrid_sysid.cli.train import main
     main()
 """)
 

@@ -11,7 +11,7 @@ import pytest
 from omegaconf import OmegaConf
 from scipy.optimize import curve_fit
 
-from hybrid_sysid.estimator import InputError, resample_to
+from hybrid_sysid.inference.estimator import InputError, resample_to
 from hybrid_sysid.model.metrics import relative_deviation
 from hybrid_sysid.physics import road_profiles, simulate
 
@@ -28,7 +28,7 @@ def tiny_run(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
-    from hybrid_sysid.train import train
+    from hybrid_sysid.training.run import train
 
     base = tmp_path_factory.getbasetemp()
     run_dir = base / "tiny_estimator_run"
@@ -58,7 +58,7 @@ def recordings(n, n_steps, dt, seed=7, speed=15.0):
 def test_predicts_what_training_evaluated(tiny_run, est):
     """One window of a test recording gives the prediction train() wrote for it (its own evaluation path:
     the data module's batch, the best checkpoint), so channels, dtype, scaling and mode all match."""
-    from hybrid_sysid.train import build_datamodule
+    from hybrid_sysid.training.build import build_datamodule
 
     dm = build_datamodule(est.config)
     batch = dm.eval_batch("test")
@@ -187,9 +187,9 @@ def test_run_without_network_raises_one_line(tiny_run, tmp_path):
     with pytest.raises(InputError, match=r"checkpoint .*last.ckpt does not fit the run's model.net \(hybrid_sysid"):
         load_estimator(tmp_path, checkpoint=tiny_run / "checkpoints" / "last.ckpt")
     cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
-    cfg.model.net = {"_target_": "hybrid_sysid.baselines.LeastSquaresEstimator", "span": "window"}
+    cfg.baseline = {"_target_": "hybrid_sysid.baselines.LeastSquaresFit", "span": "window"}
     OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
-    with pytest.raises(InputError, match=r"is a baseline \(model.net._target_ = hybrid_sysid.baselines.Least"):
+    with pytest.raises(InputError, match=r"is a baseline \(baseline._target_ = hybrid_sysid.baselines.Least"):
         load_estimator(tmp_path)
 
 
@@ -209,7 +209,7 @@ def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
 def test_importing_physics_or_the_app_does_not_load_torch():
     # the app's process composes and checks the config (and a sweep's parent launches jobs) without torch, so a
     # refused value comes back in a second
-    code = ("import sys, hybrid_sysid.physics, hybrid_sysid.app; assert 'torch' not in sys.modules, 'torch loaded'; "
+    code = ("import sys, hybrid_sysid.physics, hybrid_sysid.cli.train; assert 'torch' not in sys.modules, 'torch loaded'; "
             "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "
             "import hybrid_sysid; getattr(hybrid_sysid, 'nothing')")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)

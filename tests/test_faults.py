@@ -112,7 +112,7 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
 def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, reference_run):
     out = tmp_path / "eval"
     # the default data: simulating it (an empty cache) outlasts the signal's way there
-    cli = [sys.executable, "-m", "hybrid_sysid.evaluate", f"run={reference_run}", "data=default",
+    cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"run={reference_run}", "data=default",
            f"hydra.run.dir={out}"]
     proc = subprocess.Popen(cli, cwd=tmp_path, env=env_for(tmp_path), stdout=subprocess.PIPE,
                             stderr=subprocess.STDOUT, text=True)

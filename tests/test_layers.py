@@ -1,33 +1,41 @@
-"""The package's layers import one way (docs/design.md, "Architecture"), and no private name crosses modules."""
+"""The package's folders are its layers and import one way (docs/design.md, "Architecture"); no two modules import
+each other, directly or round a loop; no private name crosses modules."""
 
 import ast
+import sys
 from pathlib import Path
 
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "hybrid_sysid"
-# bottom up; a module may import its own layer and those below it
+# bottom up; a module may import its own layer and those below it. A __main__ module is an entry point wherever
+# it sits (``python -m hybrid_sysid.report``), so it counts as cli.
 LAYERS = [
-    {"files"},
+    {"core"},
     {"physics"},
     {"data"},
     {"model", "baselines"},
-    {"config", "train", "records", "callbacks", "tracking"},
+    {"config"},
+    {"runs"},
+    {"training"},
     {"report"},
-    {"app", "estimator", "predict", "evaluate", "transfer", "tuned", "chain", "__main__", "__init__"},
+    {"experiments", "inference"},
+    {"cli", "__main__", "__init__"},
 ]
 
 
 def layer_of(module: str) -> int:
-    """hybrid_sysid.<part>... -> the index of <part>'s layer."""
-    part = module.split(".")[1] if "." in module else "__init__"
+    """hybrid_sysid.<folder>... -> the index of <folder>'s layer."""
+    parts = module.split(".")
+    part = "__main__" if parts[-1] == "__main__" else (parts[1] if len(parts) > 1 else "__init__")
     return next(i for i, names in enumerate(LAYERS) if part in names)
 
 
 def modules():
     for path in sorted(SRC.rglob("*.py")):
         rel = path.relative_to(SRC.parent).with_suffix("")
-        yield ".".join(rel.parts), ast.parse(path.read_text())
+        name = ".".join(rel.parts[:-1] if rel.parts[-1] == "__init__" and len(rel.parts) > 2 else rel.parts)
+        yield name, ast.parse(path.read_text())
 
 
 def project_imports(tree):
@@ -41,9 +49,20 @@ def project_imports(tree):
                     yield a.name, []
 
 
+def targets(module: str, names: list[str], known: set[str]) -> list[str]:
+    """The modules an import reaches: "from hybrid_sysid.report import summary" reaches the submodule."""
+    subs = [f"{module}.{n}" for n in names if f"{module}.{n}" in known]
+    return subs or [module]
+
+
 def test_every_module_is_in_a_layer():
     for name, _ in modules():
         layer_of(name)  # raises StopIteration for a module no layer names
+
+
+def test_the_top_level_holds_only_the_package_files():
+    """Every module lives in the folder of its layer: no module beside __init__ and __main__ at the top."""
+    assert sorted(p.name for p in SRC.glob("*.py")) == ["__init__.py", "__main__.py"]
 
 
 @pytest.mark.parametrize("name, tree", list(modules()), ids=lambda x: x if isinstance(x, str) else "")
@@ -55,3 +74,36 @@ def test_imports_go_down_only_and_take_no_private_names(name, tree):
         assert layer_of(target) <= layer_of(name), f"{name} imports {module} from a higher layer"
         private = [n for n in names if n.startswith("_")]
         assert not private, f"{name} imports the private name(s) {private} from {module}"
+
+
+def test_no_import_cycle():
+    """Within a layer too: the graph of module imports (lazy ones included, a package counted through its
+    __init__) has no cycle."""
+    found = dict(modules())
+    known = set(found)
+    graph = {name: {t for m, ns in project_imports(tree) for t in targets(m, ns, known) if t in known and t != name}
+             for name, tree in found.items()}
+    state: dict[str, int] = {}  # 1: on the current path, 2: done
+
+    def visit(node, path):
+        state[node] = 1
+        for nxt in sorted(graph[node]):
+            if state.get(nxt) == 1:
+                cycle = path[path.index(nxt):] + [nxt]
+                pytest.fail("import cycle: " + " -> ".join(cycle))
+            if nxt not in state:
+                visit(nxt, path + [nxt])
+        state[node] = 2
+
+    for name in sorted(graph):
+        if name not in state:
+            visit(name, [name])
+
+
+def test_the_cycle_check_finds_a_cycle(monkeypatch):
+    """The check above is not vacuous: two modules that import each other fail it."""
+    trees = {"hybrid_sysid.cli.a": ast.parse("from hybrid_sysid.cli.b import x"),
+             "hybrid_sysid.cli.b": ast.parse("from hybrid_sysid.cli import a")}
+    monkeypatch.setattr(sys.modules[__name__], "modules", lambda: iter(trees.items()))
+    with pytest.raises(pytest.fail.Exception, match="import cycle"):
+        test_no_import_cycle()

@@ -11,7 +11,7 @@ import pandas as pd
 import pytest
 from test_estimator import est, recordings, tiny_run  # noqa: F401  (one trained run serves both files)
 
-from hybrid_sysid.predict import main
+from hybrid_sysid.cli.predict import main
 
 PARAMS = ["p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
 
@@ -45,7 +45,7 @@ def test_csv_through_the_command_gives_the_api_numbers(tiny_run, est, tmp_path):
     seat, body, _ = recordings(3, 320, est.dt)
     names = ["front", "rear", "spare"]
     csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt, names)
-    done = subprocess.run([sys.executable, "-m", "hybrid_sysid.predict", f"run={tiny_run}", f"input={csv}",
+    done = subprocess.run([sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", f"input={csv}",
                            f"output={tmp_path / 'out.csv'}", "windows=5"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     got = pd.read_csv(tmp_path / "out.csv")
@@ -60,7 +60,7 @@ def test_bad_input_exits_2_with_one_line_in_a_real_process(tiny_run, est, tmp_pa
     """After the run is loaded, so nothing that loading prints can slip in (warnings, tracebacks)."""
     seat, body, _ = recordings(1, 150, est.dt)
     csv = write_csv(tmp_path / "short.csv", seat, body, est.dt)
-    done = subprocess.run([sys.executable, "-m", "hybrid_sysid.predict", f"run={tiny_run}", f"input={csv}"],
+    done = subprocess.run([sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", f"input={csv}"],
                           capture_output=True, text=True)
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.splitlines() == [f"hybrid-sysid-predict: error: input = {csv}: recording 0 has 150 steps; "
@@ -168,7 +168,7 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
     (tmp_path / "baseline" / ".hydra").mkdir(parents=True)
     cfg = (tiny_run / ".hydra" / "config.yaml").read_text()
     (tmp_path / "baseline" / ".hydra" / "config.yaml").write_text(
-        cfg.replace("hybrid_sysid.model.networks.FastCNN", "hybrid_sysid.baselines.LeastSquaresEstimator"))
+        cfg.replace("baseline: null", "baseline:\n  _target_: hybrid_sysid.baselines.LeastSquaresFit"))
     (tmp_path / "untrained" / ".hydra").mkdir(parents=True)
     shutil.copy(tiny_run / ".hydra" / "config.yaml", tmp_path / "untrained" / ".hydra")
     run, inp = f"run={tiny_run}", f"input={csv}"
@@ -196,8 +196,8 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
                                                r"directory written by hybrid-sysid"),
         ((f"run={tmp_path / 'untrained'}", inp), r"run = .*untrained has no checkpoint .*best.ckpt or "
                                                  r".*last.ckpt; allowed: a run that trained a network"),
-        ((f"run={tmp_path / 'baseline'}", inp), r"is a baseline \(model.net._target_ = "
-                                                r"hybrid_sysid.baselines.LeastSquaresEstimator\) without a trained"),
+        ((f"run={tmp_path / 'baseline'}", inp), r"is a baseline \(baseline._target_ = "
+                                                r"hybrid_sysid.baselines.LeastSquaresFit\) without a trained"),
     ]
     for argv, message in cases:
         code, out, err = predict(capsys, *argv)

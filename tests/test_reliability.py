@@ -10,8 +10,9 @@ import numpy as np
 import pytest
 import torch
 
-from hybrid_sysid.config import ConfigError, check_resume
-from hybrid_sysid.records import CompletedRecordError, previous_record, run_record, write_record
+from hybrid_sysid.config import ConfigError
+from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.records import CompletedRecordError, previous_record, run_record, write_record
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=20", "trainer.eval_every_n_steps=10"]
 
@@ -61,20 +62,20 @@ def saved_run(tmp_path, make_cfg, *overrides):
 
 def test_resume_refuses_a_directory_without_a_run(tmp_path, make_cfg):
     with pytest.raises(ConfigError, match="resume = .* no such directory"):
-        check_resume(tmp_path / "missing", make_cfg())
+        RunDir(tmp_path / "missing").check_resume(make_cfg())
     with pytest.raises(ConfigError, match="holds no run"):
-        check_resume(tmp_path, make_cfg())
+        RunDir(tmp_path).check_resume(make_cfg())
     assert not (tmp_path / "missing").exists()
 
 
 def test_resume_refuses_a_run_of_another_config(tmp_path, make_cfg):
     run = saved_run(tmp_path, make_cfg, *TINY, "seed=0")
     with pytest.raises(ConfigError, match=r"another config \(seed = 0 there, 1 here\)"):
-        check_resume(run, make_cfg(*TINY, "seed=1"))
+        RunDir(run).check_resume(make_cfg(*TINY, "seed=1"))
     with pytest.raises(ConfigError, match="trainer.max_steps = 20 there, 40 here"):
-        check_resume(run, make_cfg(*TINY, "trainer.max_steps=40"))
+        RunDir(run).check_resume(make_cfg(*TINY, "trainer.max_steps=40"))
     with pytest.raises(ConfigError, match="model.net.channels"):
-        check_resume(run, make_cfg(*TINY, "model.net.channels=16"))
+        RunDir(run).check_resume(make_cfg(*TINY, "model.net.channels=16"))
 
 
 def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
@@ -82,13 +83,13 @@ def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
     moved = tmp_path / "moved"
     run.rename(moved)
     # where the run and the cache lie and the progress bar cannot change the numbers
-    check_resume(moved, make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true"))
+    RunDir(moved).check_resume(make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true"))
 
 
 def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, caplog):
     run = saved_run(tmp_path, make_cfg, *TINY)
     (run / ".hydra" / "config.yaml").write_text("data: {n_roads: [")  # truncated
-    check_resume(run, make_cfg(*TINY))
+    RunDir(run).check_resume(make_cfg(*TINY))
     assert "resuming without comparing" in caplog.text
 
 
@@ -101,7 +102,7 @@ def finished(tmp_path_factory):
 
     from hybrid_sysid.config import CONF_DIR
     from hybrid_sysid.report.run_figures import write_run_figures
-    from hybrid_sysid.train import train
+    from hybrid_sysid.training.run import train
 
     tmp = tmp_path_factory.mktemp("finished")
     overrides = [*TINY, f"data.cache_dir={tmp / 'cache'}", "trainer.progress_bar=false", "trainer.threads=1"]
@@ -131,8 +132,8 @@ def test_each_file_a_run_writes_truncated_then_the_next_command_recovers(finishe
     job run again completes with the numbers of the undamaged run, and the report reads the directory."""
     import shutil
 
-    from hybrid_sysid.report.cli import main as report
-    from hybrid_sysid.train import train
+    from hybrid_sysid.cli.report import main as report
+    from hybrid_sysid.training.run import train
 
     cfg, overrides, done, record = finished
     run = tmp_path / "run"
@@ -161,7 +162,7 @@ def test_each_file_a_run_writes_truncated_then_the_next_command_recovers(finishe
 
 
 def test_checkpoints_name_their_files_relative_to_the_run(finished, tmp_path):
-    from hybrid_sysid.callbacks import RunCheckpoint
+    from hybrid_sysid.training.callbacks import RunCheckpoint
 
     _, _, run, _ = finished
     state = next(v for k, v in torch.load(run / "checkpoints" / "last.ckpt", weights_only=True)["callbacks"].items()
@@ -181,7 +182,7 @@ def test_the_record_holds_the_thread_count(finished):
 # ---- the sweep summary ---------------------------------------------------------------------------------------------
 
 def test_a_sweep_whose_jobs_all_failed_still_gets_its_summary(tmp_path):
-    from hybrid_sysid.report.cli import main as report
+    from hybrid_sysid.cli.report import main as report
     from hybrid_sysid.report.summary import write_summary
 
     for i, lr in enumerate(["-1", "1e6"]):
@@ -215,7 +216,8 @@ SPEC_ARGS = dict(n_roads=3, n_masses=2, n_steps=300)
 
 
 def dataset(cache, n_steps=300):
-    from hybrid_sysid.data.dataset import DatasetSpec, get_dataset
+    from hybrid_sysid.data.dataset import DatasetSpec
+    from hybrid_sysid.data.cache import get_dataset
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         ds = get_dataset(DatasetSpec(**{**SPEC_ARGS, "n_steps": n_steps}), cache)
@@ -228,7 +230,8 @@ def reference(n_steps=300):
 
 
 def test_a_directory_in_place_of_the_cache_file_costs_a_warning(tmp_path):
-    from hybrid_sysid.data.dataset import DatasetSpec, cache_path
+    from hybrid_sysid.data.dataset import DatasetSpec
+    from hybrid_sysid.data.cache import cache_path
     cache_path(DatasetSpec(**SPEC_ARGS), tmp_path).mkdir(parents=True)
     ds, warned = dataset(tmp_path)
     assert "not cached" in warned and "using it from memory" in warned
@@ -236,7 +239,8 @@ def test_a_directory_in_place_of_the_cache_file_costs_a_warning(tmp_path):
 
 
 def test_a_killed_writers_temporary_file_is_removed(tmp_path):
-    from hybrid_sysid.data.dataset import DatasetSpec, cache_path
+    from hybrid_sysid.data.dataset import DatasetSpec
+    from hybrid_sysid.data.cache import cache_path
     path = cache_path(DatasetSpec(**SPEC_ARGS), tmp_path)
     stale = path.parent / f".{path.name}.k1ll3d.tmp"  # files.write_atomic's name, left by a SIGKILL
     stale.write_bytes(b"half a dataset")
@@ -245,7 +249,8 @@ def test_a_killed_writers_temporary_file_is_removed(tmp_path):
 
 
 def test_cache_files_take_the_umask_mode(tmp_path):
-    from hybrid_sysid.data.dataset import DatasetSpec, cache_path
+    from hybrid_sysid.data.dataset import DatasetSpec
+    from hybrid_sysid.data.cache import cache_path
     old = os.umask(0o022)
     try:
         dataset(tmp_path)

@@ -25,26 +25,26 @@ TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_ever
 POISONED = textwrap.dedent("""
     import torch
     from hybrid_sysid.data import datamodule
-    init = datamodule.QCMData.__init__
+    init = datamodule.WindowCutter.__init__
     def poisoned(self, *args, **kwargs):
         init(self, *args, **kwargs)
         self.params = torch.rand(self.params.shape, generator=torch.Generator().manual_seed(1)) * 50
-    datamodule.QCMData.__init__ = poisoned
-    from hybrid_sysid.app import main
+    datamodule.WindowCutter.__init__ = poisoned
+    from hybrid_sysid.cli.train import main
     main()
 """)
 
 
 # the app with one trial failing: the one with 16 channels (the seeded sampler's first draw)
 FAILING = textwrap.dedent("""
-    from hybrid_sysid import train
+    from hybrid_sysid.training import run as train
     build_model = train.build_model
     def failing(cfg):
         if cfg.model.net.channels == 16:
             raise RuntimeError("a failing trial")
         return build_model(cfg)
     train.build_model = failing
-    from hybrid_sysid.app import main
+    from hybrid_sysid.cli.train import main
     main()
 """)
 

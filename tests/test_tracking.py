@@ -7,7 +7,7 @@ import pytest
 import yaml
 
 from hybrid_sysid.config import ConfigError, validate
-from hybrid_sysid.train import train
+from hybrid_sysid.training.run import train
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=60", "trainer.eval_every_n_steps=30"]
 
@@ -87,13 +87,13 @@ def test_a_logger_without_its_library_is_a_one_line_error(make_cfg, monkeypatch)
 
 
 def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
-    from hybrid_sysid import app
+    from hybrid_sysid.cli import job as app
 
-    monkeypatch.setattr(app, "_installed", lambda module: False)
+    monkeypatch.setattr(app, "installed", lambda module: False)
     assert app.missing_extra(["seed=1", "hparams_search=fast_cnn"]) == \
         'hparams_search=fast_cnn needs hydra-optuna-sweeper, which is not installed: pip install -e ".[search]"'
     assert "pip install -e \".[slurm]\"" in app.missing_extra(["launcher=slurm"])
     assert app.missing_extra(["experiment=tuned"]) == \
         'experiment=tuned needs optuna, which is not installed: pip install -e ".[search]"'
-    monkeypatch.setattr(app, "_installed", lambda module: True)
+    monkeypatch.setattr(app, "installed", lambda module: True)
     assert app.missing_extra(["hparams_search=fast_cnn", "launcher=slurm"]) is None

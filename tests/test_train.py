@@ -8,7 +8,8 @@ import pytest
 import torch
 
 from hybrid_sysid.report.run_figures import write_run_figures
-from hybrid_sysid.train import build_model, train
+from hybrid_sysid.training.build import build_model
+from hybrid_sysid.training.run import train
 
 TINY = ["data=tiny", "trainer=debug", "noise.eval_std=[0.0,0.05]"]
 

@@ -14,7 +14,8 @@ from omegaconf import OmegaConf
 
 from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.physics import QuarterCar, stable_dt_limit
-from hybrid_sysid.train import build_model, evaluate_run, train
+from hybrid_sysid.training.build import build_model
+from hybrid_sysid.training.run import evaluate_checkpoint, train
 
 TINY = ["data=tiny", "trainer=debug"]
 # the paper's car (sec. 2.2) and the two shifted cars of experiment=transfer
@@ -94,19 +95,19 @@ def source(tmp_path_factory):
 
 def test_evaluating_a_run_on_its_own_config_reproduces_its_metrics(source, tmp_path):
     cfg, record, run_dir = source
-    again = evaluate_run(cfg, run_dir, tmp_path / "eval", overrides=["run=x"])
+    again = evaluate_checkpoint(cfg, run_dir, tmp_path / "eval", overrides=["run=x"])
     assert again["results"] == record["results"]  # exactly: same weights, windows and noise
     on_disk = json.loads((tmp_path / "eval" / "metrics.json").read_text())
     assert on_disk["source_run"] == str(run_dir) and on_disk["status"] == "completed"
     stamp = (tmp_path / "eval" / "metrics.json").stat().st_mtime_ns
-    assert evaluate_run(cfg, run_dir, tmp_path / "eval", overrides=["run=x"]) == on_disk  # a re-run skips it
+    assert evaluate_checkpoint(cfg, run_dir, tmp_path / "eval", overrides=["run=x"]) == on_disk  # a re-run skips it
     assert (tmp_path / "eval" / "metrics.json").stat().st_mtime_ns == stamp
 
 
 def test_evaluation_on_another_car_changes_the_labels_not_the_network(source, tmp_path):
     cfg, record, run_dir = source
     other = OmegaConf.merge(cfg, {"car": {"c3": 615.0 * 1.12}})
-    evaluate_run(other, run_dir, tmp_path / "eval", overrides=[])
+    evaluate_checkpoint(other, run_dir, tmp_path / "eval", overrides=[])
     import pandas as pd
     pred = pd.read_csv(tmp_path / "eval" / "predictions.csv")
     np.testing.assert_allclose(pred.p1_true, 615.0 * 1.12 / pred.m3, rtol=1e-6)  # the target's labels
@@ -142,7 +143,7 @@ def test_adaptation_starts_from_the_sources_weights(source, tmp_path, make_cfg):
     _, _, run_dir = source
     cfg = make_cfg(*TINY, "objective=hybrid", f"init_from={run_dir}")
     model = build_model(cfg)
-    from hybrid_sysid.train import load_network
+    from hybrid_sysid.training.build import load_network
     load_network(model, cfg, run_dir, "init_from")
     best = torch.load(run_dir / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]
     for key, value in model.net.state_dict().items():
@@ -161,7 +162,7 @@ def test_another_architecture_is_one_named_error(source, tmp_path, make_cfg):
 
 
 def test_the_transfer_plan(make_cfg, tmp_path):
-    from hybrid_sysid.transfer import plan
+    from hybrid_sysid.experiments.transfer import plan
     cfg = make_cfg("experiment=transfer", "data=tiny", "seed=2")
     runs = plan(cfg, tmp_path)
     assert len(runs) == 1 + 4 * 3
@@ -180,7 +181,7 @@ def test_the_transfer_plan(make_cfg, tmp_path):
 def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path):
     _, _, run_dir = source
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    cli = [sys.executable, "-c", "from hybrid_sysid.evaluate import main; main()"]
+    cli = [sys.executable, "-c", "from hybrid_sysid.cli.evaluate import main; main()"]
     bad = subprocess.run(cli + [f"run={run_dir}", "objective=hybrid"], cwd=tmp_path, env=env, capture_output=True, text=True,
                          timeout=300)
     assert bad.returncode == 2 and "Traceback" not in bad.stderr

@@ -1,4 +1,4 @@
-"""experiment=tuned (hybrid_sysid.tuned): the search space read as hydra-optuna-sweeper reads it, trial 0 is the
+"""experiment=tuned (hybrid_sysid.experiments.tuned): the search space read as hydra-optuna-sweeper reads it, trial 0 is the
 defaults, the tuned runs carry the best trial's values (the lowest recorded validation figure), a hybrid search
 never reads labels, a re-run trains nothing, and the sweep as a user runs it ends with a table of the default and
 tuned runs only and the searches' table."""
@@ -15,9 +15,9 @@ from omegaconf import OmegaConf
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 
-from hybrid_sysid.chain import group  # noqa: E402
+from hybrid_sysid.experiments.presets import preset  # noqa: E402
 from hybrid_sysid.config import ConfigError  # noqa: E402
-from hybrid_sysid.tuned import defaults_in, run_tuned, search_space  # noqa: E402
+from hybrid_sysid.experiments.tuned import defaults_in, run_tuned, search_space  # noqa: E402
 
 TINY = ["experiment=tuned", "data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
         "tuned.n_trials=3", "tuned.seeds=[0]", "evaluation.windows=[1]"]
@@ -28,8 +28,8 @@ def test_the_space_is_the_one_hydra_optuna_sweeper_builds_from_the_preset():
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     parser = OverridesParser.create()
-    preset = dict(group("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
-    for params in (preset, {"a": "interval(1, 4)", "b": "tag(log, interval(1, 100))", "c": "choice(x, y)"}):
+    fast_cnn = dict(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
+    for params in (fast_cnn, {"a": "interval(1, 4)", "b": "tag(log, interval(1, 100))", "c": "choice(x, y)"}):
         theirs = {k: impl.create_optuna_distribution_from_override(parser.parse_override(f"{k}={v}"))
                   for k, v in params.items()}
         assert search_space(params) == theirs
@@ -38,7 +38,7 @@ def test_the_space_is_the_one_hydra_optuna_sweeper_builds_from_the_preset():
 
 
 def test_defaults_outside_the_space_are_one_named_error(make_cfg):
-    space = search_space(group("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
+    space = search_space(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
     cfg = make_cfg("experiment=tuned")
     assert defaults_in(cfg, space)["model.net.channels"] == cfg.model.net.channels
     with pytest.raises(ConfigError, match=r"model.net.channels = 64 is not allowed with experiment=tuned"):
@@ -115,7 +115,7 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
     tuning = (sweep / "tuning.md").read_text()
     assert "val/loss" in tuning and "1/1" in tuning  # the monitor and the completed trials of the search
     assert (sweep / "figures" / "tuning.png").stat().st_size > 0
-    from hybrid_sysid.report.cli import main as report
+    from hybrid_sysid.cli.report import main as report
     assert report([sweep, "--out", tmp_path / "all"]) == 0  # without --exclude the trials are rows too
     assert pd.read_csv(tmp_path / "all" / "summary.csv").run.nunique() == 3
     assert report([sweep, "--out", tmp_path / "some", "--exclude", "*/search/*"]) == 0
@@ -123,7 +123,7 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
 
 
 def test_a_failed_trial_is_recorded_and_the_study_goes_on(make_cfg, tmp_path, monkeypatch):
-    from hybrid_sysid import train as train_module
+    from hybrid_sysid.training import run as train_module
     build_model = train_module.build_model
 
     def failing(cfg):  # the seeded sampler's first draw after the defaults has 16 channels

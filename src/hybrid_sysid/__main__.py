@@ -1,3 +1,3 @@
-from hybrid_sysid.app import main
+from hybrid_sysid.cli.train import main
 
 main()

@@ -1,4 +1,4 @@
-"""A baseline is a model choice: `model=ls_window` runs through train() without Lightning and writes the same
+"""A baseline is a config group of its own: `baseline=ls_window` runs through train() without Lightning and writes the same
 record, predictions and figures as a network run."""
 
 import json
@@ -8,7 +8,8 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.report.run_figures import write_run_figures
-from hybrid_sysid.train import build_datamodule, train
+from hybrid_sysid.training.build import build_datamodule
+from hybrid_sysid.training.run import train
 
 TINY = ["data=tiny", "noise.eval_std=[0.0,0.05]", "evaluation.windows=[1,3]"]
 
@@ -30,8 +31,8 @@ def compose_cfg(tmp_path_factory):
 @pytest.fixture(scope="module")
 def window_run(compose_cfg, tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("ls_window") / "run"
-    cfg = compose_cfg("model=ls_window", *TINY)
-    return cfg, train(cfg, run_dir, overrides=["model=ls_window", *TINY]), run_dir
+    cfg = compose_cfg("baseline=ls_window", *TINY)
+    return cfg, train(cfg, run_dir, overrides=["baseline=ls_window", *TINY]), run_dir
 
 
 def direct_fit(dm, split, std, k):
@@ -88,7 +89,7 @@ def test_ls_window_run_writes_predictions_curves_and_figures(window_run):
 
 @pytest.mark.parametrize("model", ["ls_series", "ls_bandpass"])
 def test_series_baselines_run_and_ignore_k(compose_cfg, tmp_path, model):
-    record = train(compose_cfg(f"model={model}", *TINY), tmp_path / "run", overrides=[f"model={model}"])
+    record = train(compose_cfg(f"baseline={model}", *TINY), tmp_path / "run", overrides=[f"baseline={model}"])
     assert record["status"] == "completed" and record["steps"] == 0
     test = {(r["noise_std"], r["windows"], r["parameter"]): r["mean_rel_dev"] for r in record["results"]
             if r["split"] == "test"}

@@ -3,7 +3,9 @@
 import numpy as np
 import pytest
 
-from hybrid_sysid.baselines import LeastSquaresEstimator, bandpass_taps, fir_valid, fit_p
+from hybrid_sysid.baselines import LeastSquaresFit, fit_p
+
+from hybrid_sysid.physics.filters import bandpass_taps, fir_valid
 
 DT = 0.005  # 200 Hz sampling, Nyquist 100 Hz
 
@@ -54,35 +56,35 @@ def test_the_seat_equation_survives_the_filter(clean_recordings):
 
 
 BAD = [
-    (dict(high_hz=150), r"^model\.net\.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)$"),
-    (dict(high_hz=3.0), r"^model\.net\.high_hz = 3 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)$"),
-    (dict(low_hz=0), r"^model\.net\.low_hz = 0 is not allowed: must lie in \(0, Nyquist = 100 Hz\)$"),
-    (dict(low_hz=-1.5), r"^model\.net\.low_hz = -1\.5 is not allowed: must lie in \(0, Nyquist = 100 Hz\)$"),
-    (dict(taps=100), r"^model\.net\.taps = 100 is not allowed: must be an odd integer >= 3"),
-    (dict(taps=1), r"^model\.net\.taps = 1 is not allowed: must be an odd integer >= 3"),
-    (dict(taps=50.5), r"^model\.net\.taps = 50\.5 is not allowed: must be an odd integer >= 3"),
-    (dict(dt=0), r"^model\.net\.dt = 0 is not allowed: must be > 0"),
-    (dict(dt=0.001, high_hz=600), r"^model\.net\.high_hz = 600 is not allowed: .*Nyquist = 500 Hz\)$"),
-    (dict(span="recording"), r"^model\.net\.span = 'recording' is not allowed: one of window, series$"),
-    (dict(filter="lowpass"), r"^model\.net\.filter = 'lowpass' is not allowed: one of none, bandpass$"),
+    (dict(high_hz=150), r"^baseline\.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)$"),
+    (dict(high_hz=3.0), r"^baseline\.high_hz = 3 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)$"),
+    (dict(low_hz=0), r"^baseline\.low_hz = 0 is not allowed: must lie in \(0, Nyquist = 100 Hz\)$"),
+    (dict(low_hz=-1.5), r"^baseline\.low_hz = -1\.5 is not allowed: must lie in \(0, Nyquist = 100 Hz\)$"),
+    (dict(taps=100), r"^baseline\.taps = 100 is not allowed: must be an odd integer >= 3"),
+    (dict(taps=1), r"^baseline\.taps = 1 is not allowed: must be an odd integer >= 3"),
+    (dict(taps=50.5), r"^baseline\.taps = 50\.5 is not allowed: must be an odd integer >= 3"),
+    (dict(dt=0), r"^baseline\.dt = 0 is not allowed: must be > 0"),
+    (dict(dt=0.001, high_hz=600), r"^baseline\.high_hz = 600 is not allowed: .*Nyquist = 500 Hz\)$"),
+    (dict(span="recording"), r"^baseline\.span = 'recording' is not allowed: one of window, series$"),
+    (dict(filter="lowpass"), r"^baseline\.filter = 'lowpass' is not allowed: one of none, bandpass$"),
 ]
 
 
 @pytest.mark.parametrize("kwargs, match", BAD)
 def test_bad_values_raise_one_line_naming_key_value_and_range(kwargs, match):
     with pytest.raises(ValueError, match=match) as info:
-        LeastSquaresEstimator(**{"filter": "bandpass", **kwargs})
+        LeastSquaresFit(**{"filter": "bandpass", **kwargs})
     assert "\n" not in str(info.value)
 
 
 @pytest.mark.parametrize("overrides, match", [
-    (["model=ls_bandpass", "model.net.high_hz=150"],
-     r"model\.net\.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)"),
-    (["model=ls_bandpass", "model.net.span=window", "model.net.taps=495"],
-     r"model\.net\.taps = 495 is not allowed: must be <= data\.window - 9 = 491"),
-    (["model=ls_bandpass", "data.n_steps=150", "data.window=100"],
-     r"model\.net\.taps = 151 is not allowed: must be <= data\.n_steps - 9 = 141"),
-    (["model=ls_window", "model.net.span=all"], r"model\.net\.span = 'all' is not allowed: one of window, series"),
+    (["baseline=ls_bandpass", "baseline.high_hz=150"],
+     r"baseline\.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)"),
+    (["baseline=ls_bandpass", "baseline.span=window", "baseline.taps=495"],
+     r"baseline\.taps = 495 is not allowed: must be <= data\.window - 9 = 491"),
+    (["baseline=ls_bandpass", "data.n_steps=150", "data.window=100"],
+     r"baseline\.taps = 151 is not allowed: must be <= data\.n_steps - 9 = 141"),
+    (["baseline=ls_window", "baseline.span=all"], r"baseline\.span = 'all' is not allowed: one of window, series"),
 ])
 def test_config_validation_reports_the_baselines_errors(make_cfg, overrides, match):
     from hybrid_sysid.config import ConfigError, validate
@@ -94,4 +96,4 @@ def test_baseline_configs_are_valid(make_cfg):
     from hybrid_sysid.config import validate
     for model in ("ls_window", "ls_series", "ls_bandpass"):
         for data in ("default", "tiny", "paper"):
-            validate(make_cfg(f"model={model}", f"data={data}"))
+            validate(make_cfg(f"baseline={model}", f"data={data}"))

@@ -3,16 +3,16 @@
 import numpy as np
 import pytest
 
-from hybrid_sysid.baselines import LeastSquaresEstimator, fit_p, lstsq_rows
+from hybrid_sysid.baselines import LeastSquaresFit, fit_p, lstsq_rows
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.model.metrics import relative_deviation
 
 
 @pytest.fixture(scope="module")
 def dm():
     """10 roads x 8 masses x 1200 steps at 5 ms, 500-step windows: the default data's shape, small."""
-    d = QCMDataModule(DatasetSpec(n_roads=10, n_masses=8, n_steps=1200, seed=4), window=500, seed=2)
+    d = QuarterCarDataModule(DatasetSpec(n_roads=10, n_masses=8, n_steps=1200, seed=4), window=500, seed=2)
     d.setup()
     return d
 
@@ -53,7 +53,7 @@ def test_clean_recordings_give_back_p(clean_recordings):
     ("series", "none", 3e-5),
 ])
 def test_estimator_on_clean_data_module_gives_back_p(dm, span, filt, tol):
-    est = LeastSquaresEstimator(span=span, filter=filt, dt=0.005)
+    est = LeastSquaresFit(span=span, filter=filt, dt=0.005)
     pred, true = est.predict_split(dm, "test", 0.0)
     rows = dm.rows("test")
     assert pred.shape == true.shape == (len(rows), 2) and pred.dtype == true.dtype == np.float64
@@ -70,19 +70,19 @@ def test_window_span_equals_a_direct_fit_on_the_evaluation_windows(dm):
                                for i in range(len(seat))])
         index = batch["index"].numpy()
         want = np.stack([per_window[index == row].mean(axis=0) for row in dm.rows("val")])
-        pred, true = LeastSquaresEstimator(span="window").predict_split(dm, "val", 0.02, windows=k)
+        pred, true = LeastSquaresFit(span="window").predict_split(dm, "val", 0.02, windows=k)
         np.testing.assert_allclose(pred, want, rtol=1e-7)
         np.testing.assert_array_equal(true, dm.dataset.params[dm.rows("val")].astype(np.float32))
 
 
 def test_series_noise_is_seeded_and_the_series_span_ignores_k(dm):
-    est = LeastSquaresEstimator(span="series")
+    est = LeastSquaresFit(span="series")
     a, _ = est.predict_split(dm, "train", 0.01)
-    b, _ = LeastSquaresEstimator(span="series").predict_split(dm, "train", 0.01, windows=4)
+    b, _ = LeastSquaresFit(span="series").predict_split(dm, "train", 0.01, windows=4)
     np.testing.assert_array_equal(a, b)
     first, _ = est.predict_split(dm, "train", 0.01, limit=5)
     np.testing.assert_array_equal(first, a[:5])  # the limit does not change the noise
-    other = QCMDataModule(dm.spec, window=500, seed=3)
+    other = QuarterCarDataModule(dm.spec, window=500, seed=3)
     c, _ = est.predict_split(other, "train", 0.01)
     assert not np.array_equal(a, c)
     assert est.fit_seconds > 0
@@ -94,8 +94,8 @@ def mean_dev(est, dm, std, windows=1):
 
 
 def test_under_noise_the_band_pass_beats_the_unfiltered_fit(dm):
-    plain = mean_dev(LeastSquaresEstimator(span="series"), dm, 0.01)
-    band = mean_dev(LeastSquaresEstimator(span="series", filter="bandpass"), dm, 0.01)
+    plain = mean_dev(LeastSquaresFit(span="series"), dm, 0.01)
+    band = mean_dev(LeastSquaresFit(span="series", filter="bandpass"), dm, 0.01)
     # measured: plain 3.2 / 0.81 (p1 / p2: integrated noise swamps the regressors), band-pass 0.008 / 0.002
     assert (band < 0.2 * plain).all() and (band < 0.1).all()
 
@@ -113,13 +113,13 @@ def test_one_parameter_fit_with_c3_and_k3_known(clean_recordings, dm):
     want = np.array([np.linalg.lstsq(u[i][:, None], y[i], rcond=None)[0][0] for i in range(len(y))])
     got = fit_p(y, r["rel_vel"], r["rel_disp"], car=(car.c3, car.k3))
     np.testing.assert_allclose(got, want[:, None] * [car.c3, car.k3], rtol=1e-9)
-    one = LeastSquaresEstimator(span="window", filter="bandpass", unknown="m3", c3=car.c3, k3=car.k3)
-    two = LeastSquaresEstimator(span="window", filter="bandpass")
+    one = LeastSquaresFit(span="window", filter="bandpass", unknown="m3", c3=car.c3, k3=car.k3)
+    two = LeastSquaresFit(span="window", filter="bandpass")
     for std in (0.0, 0.01):
         (p_one, true), (p_two, _) = one.predict_split(dm, "test", std), two.predict_split(dm, "test", std)
         dev_one, dev_two = relative_deviation(p_one, true).mean(0), relative_deviation(p_two, true).mean(0)
         assert (dev_one <= dev_two + 1e-7).all() if std else dev_one.max() < 1e-6
-    with pytest.raises(ValueError, match=r"model.net.c3 = None is not allowed: must be finite and > 0"):
-        LeastSquaresEstimator(unknown="m3")
-    with pytest.raises(ValueError, match=r"model.net.unknown = 'k3' is not allowed: one of p, m3"):
-        LeastSquaresEstimator(unknown="k3")
+    with pytest.raises(ValueError, match=r"baseline.c3 = None is not allowed: must be finite and > 0"):
+        LeastSquaresFit(unknown="m3")
+    with pytest.raises(ValueError, match=r"baseline.unknown = 'k3' is not allowed: one of p, m3"):
+        LeastSquaresFit(unknown="k3")

@@ -8,13 +8,13 @@ import pytest
 import torch
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 
 
 def make(**kwargs):
-    dm = QCMDataModule(SPEC, window=100, batch_size=8, **({"eval_std": [0.0, 0.01, 0.1]} | kwargs))
+    dm = QuarterCarDataModule(SPEC, window=100, batch_size=8, **kwargs)
     dm.setup("fit")
     return dm
 
@@ -80,8 +80,7 @@ def test_evaluation_windows_are_fixed_and_noise_is_seeded(dm):
 
 
 def test_test_loaders_follow_the_noise_levels(dm):
-    loaders = dm.test_dataloader()
-    assert len(loaders) == 3
+    loaders = [dm.eval_dataloader("test", s) for s in (0.0, 0.01, 0.1)]
     stds = [(next(iter(ld))["signals"] - next(iter(loaders[0]))["signals"]).std().item() for ld in loaders]
     np.testing.assert_allclose(stds, [0.0, 0.01, 0.1], rtol=0.05, atol=1e-9)
 
@@ -124,9 +123,9 @@ def test_simulating_the_data_leaves_torchs_thread_count_as_the_run_set_it(tmp_pa
     """The simulation's parallel kernel shares an OpenMP runtime with torch; a run that pins one thread must
     still train on one thread after simulating (cold cache) as after loading (warm cache)."""
     if cached:
-        QCMDataModule(SPEC, window=100, batch_size=8, cache_dir=tmp_path).prepare_data()
+        QuarterCarDataModule(SPEC, window=100, batch_size=8, cache_dir=tmp_path).prepare_data()
     torch.set_num_threads(1)  # the autouse fixture in conftest.py restores the count after the test
-    dm = QCMDataModule(SPEC, window=100, batch_size=8, cache_dir=tmp_path)
+    dm = QuarterCarDataModule(SPEC, window=100, batch_size=8, cache_dir=tmp_path)
     dm.prepare_data()
     dm.setup("fit")
     assert torch.get_num_threads() == 1

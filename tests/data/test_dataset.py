@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.data import DatasetSpec, generate_dataset, get_dataset, split_by_road
-from hybrid_sysid.data.datamodule import QCMDataModule
-from hybrid_sysid.data import dataset as dataset_mod
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
+from hybrid_sysid.data import cache as dataset_mod
 from hybrid_sysid.physics import QuarterCar
 
 SMALL = DatasetSpec(n_roads=5, n_masses=4, n_steps=300, road_classes=("A", "C", "E"), seed=3)
@@ -110,7 +110,7 @@ def test_damaged_cache_is_regenerated_with_a_warning(tmp_path, small, damage):
 
 GENERATE_ONCE = """
 import sys, time
-from hybrid_sysid.data import dataset as d
+from hybrid_sysid.data import cache as d
 real = d.generate_dataset
 def counted(spec):
     with open(sys.argv[2], "a") as fh:
@@ -159,10 +159,10 @@ def test_bad_values_fail_before_anything_is_written(tmp_path, change, match):
     (dict(window=301), r"data.window = 301 is not allowed: must lie in \[1, data.n_steps = 300\]"),
     (dict(train_fraction=1.0), r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
     (dict(train_fraction=0.2), r"data.n_roads = 5 is too few for data.train_fraction = 0.2"),
-    (dict(eval_std=[0.0, -0.01]), r"noise std -0.01 is not allowed"),
+    (dict(train_std=-0.01), r"noise std -0.01 is not allowed"),
     (dict(batch_size=0), r"model.batch_size = 0 is not allowed"),
 ])
 def test_bad_datamodule_values_fail_before_anything_is_written(tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):
-        QCMDataModule(SMALL, cache_dir=str(tmp_path), **({"window": 100} | kwargs))
+        QuarterCarDataModule(SMALL, cache_dir=str(tmp_path), **({"window": 100} | kwargs))
     assert list(tmp_path.iterdir()) == []

@@ -8,14 +8,14 @@ import torch
 from torch import nn
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.datamodule import QCMDataModule
-from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
+from hybrid_sysid.model.module import IdentificationModule
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 
 
 def make(seed=0):
-    dm = QCMDataModule(SPEC, window=100, batch_size=8, eval_batch_size=7, seed=seed)
+    dm = QuarterCarDataModule(SPEC, window=100, batch_size=8, eval_batch_size=7, seed=seed)
     dm.setup()
     return dm
 
@@ -123,7 +123,7 @@ def test_limit_keeps_the_first_recordings_windows(dm):
 
 @pytest.mark.parametrize("k", [0, -1, 302, 2.0, True])
 def test_bad_k_is_named(dm, k):
-    with pytest.raises(ValueError, match=r"evaluation.windows = .* is not allowed: every K must be an integer "
+    with pytest.raises(ValueError, match=r"evaluation.windows = .* is not allowed: a non-empty list of integers K "
                                          r"in \[1, data.n_steps - data.window \+ 1 = 301\]"):
         dm.eval_batch("test", 0.0, windows=k)
 
@@ -136,7 +136,7 @@ class FakeNet(nn.Module):
 
 
 def test_predictions_are_averaged_over_each_recordings_k_windows(dm):
-    model = ParameterEstimator(FakeNet(), nn.L1Loss())
+    model = IdentificationModule(FakeNet(), nn.L1Loss())
     for k in (1, 5):
         pred, true = model.predict_split(dm, "test", 0.02, windows=k)
         batch = dm.eval_batch("test", 0.02, windows=k)  # by hand, grouped by the batch's own recording index

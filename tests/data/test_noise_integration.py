@@ -6,7 +6,7 @@ import pytest
 import torch
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.datamodule import QCMDataModule, start_state
+from hybrid_sysid.data.datamodule import QuarterCarDataModule, start_state
 from hybrid_sysid.physics import integrate, relative_states
 from hybrid_sysid.physics.filters import bandpass_taps, fir_valid
 
@@ -15,7 +15,7 @@ FIR = bandpass_taps(4.0, 20.0, 151, SPEC.dt)
 
 
 def make(integration="t0", fir=FIR, **kw):
-    dm = QCMDataModule(SPEC, window=300, batch_size=8, seed=0, integration=integration, fir=fir, **kw)
+    dm = QuarterCarDataModule(SPEC, window=300, batch_size=8, seed=0, integration=integration, fir=fir, **kw)
     dm.setup()
     return dm
 
@@ -108,4 +108,4 @@ def test_validation_windows_carry_the_training_noise():
 
 def test_bad_integration_is_refused():
     with pytest.raises(ValueError, match=r"data.integration = 'x' is not allowed: one of t0, window"):
-        QCMDataModule(SPEC, window=300, integration="x")
+        QuarterCarDataModule(SPEC, window=300, integration="x")

@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.dataset import generate_dataset, get_dataset
+from hybrid_sysid.data.dataset import generate_dataset
+from hybrid_sysid.data.cache import get_dataset
 from hybrid_sysid.physics import QuarterCar
 
 C3, K3 = 615.0, 98935.0  # the paper's seat (sec. 2.2)

@@ -6,7 +6,7 @@ import torch
 from scipy.optimize import minimize
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.datamodule import QCMDataModule
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.model.objectives import CombinedObjective, HybridObjective, noise_gram
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import bandpass_taps, fir_valid
@@ -18,7 +18,7 @@ FIR = bandpass_taps(4.0, 20.0, 151, SPEC.dt)
 
 @pytest.fixture(scope="module")
 def dm():
-    dm = QCMDataModule(SPEC, window=500, seed=0, fir=FIR, train_fraction=0.5, val_fraction=0.2)
+    dm = QuarterCarDataModule(SPEC, window=500, seed=0, fir=FIR, train_fraction=0.5, val_fraction=0.2)
     dm.setup()
     return dm
 
@@ -74,7 +74,7 @@ def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
     plain filtered least squares (numpy) is biased by the noise in its regressors (towards p of less noise
     gain); the weighted optimum is not."""
     spec = DatasetSpec(n_roads=3, n_masses=2, n_steps=1200, seed=5, road_classes=("A",))
-    dm = QCMDataModule(spec, window=500, seed=0, fir=FIR, train_fraction=0.67, val_fraction=0.5)
+    dm = QuarterCarDataModule(spec, window=500, seed=0, fir=FIR, train_fraction=0.67, val_fraction=0.5)
     dm.setup()
     row = dm.rows("train")[1:2]
     true = dm.dataset.params[row[0]].astype(np.float64)

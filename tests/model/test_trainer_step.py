@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from hybrid_sysid.model import FastCNN, HybridObjective, LabelledObjective
-from hybrid_sysid.model.module import ParameterEstimator
+from hybrid_sysid.model.module import IdentificationModule
 
 from paper_prior import P_MAX, P_MIN, P_SCALE
 
@@ -29,7 +29,7 @@ def batches(batch_factory):
 @pytest.mark.parametrize("objective", [lambda: LabelledObjective(P_SCALE), HybridObjective], ids=["labelled", "hybrid"])
 def test_trainer_steps_equal_a_plain_loop(batches, objective, tmp_path):
     torch.manual_seed(0)
-    model = ParameterEstimator(FastCNN(P_MIN, P_MAX, channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
+    model = IdentificationModule(FastCNN(P_MIN, P_MAX, channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
                                max_steps=STEPS)
     plain = copy.deepcopy(model)
 

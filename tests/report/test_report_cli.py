@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 from evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
 
-from hybrid_sysid.report.cli import main
+from hybrid_sysid.cli.report import main
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

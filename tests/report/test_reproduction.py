@@ -9,7 +9,7 @@ from evaluation_fakes import known_results, make_run, make_sweep, parse_markdown
 from omegaconf import OmegaConf
 
 from hybrid_sysid.report.paper import constant_guess, reproduction_markdown, write_reproduction
-from hybrid_sysid.report.cli import main
+from hybrid_sysid.cli.report import main
 
 CONFIG = {"data": {"n_roads": 100, "n_masses": 100, "n_steps": 6000, "dt": 0.001, "speed": 15.0, "window": 500,
                    "measurement": "consistent", "train_fraction": 0.8, "val_fraction": 0.125, "m3_min": 50,

@@ -6,9 +6,9 @@ recording (or each window) gives p by regressing the seat acceleration on (-rel_
 sensor noise the regressors are the re-integrated noisy accelerations (errors in variables), which biases
 the plain fit, and a band-pass applied to all three signals (filters.py) removes most of that noise.
 
-``LeastSquaresEstimator`` has the evaluation interface of ``model.module.ParameterEstimator``
-(``predict_split``), so ``train.evaluate`` scores it like a network; ``trainable = False`` tells ``train``
-to skip Lightning.
+``LeastSquaresFit`` meets the estimators' protocol (``hybrid_sysid.model.base.SplitPredictor``:
+``predict_split``), so the training layer scores it like a network; a run with ``baseline=`` set builds it and
+skips Lightning.
 """
 
 from __future__ import annotations
@@ -17,13 +17,12 @@ import time
 
 import numpy as np
 
-from hybrid_sysid.physics.filters import format_value, bandpass_taps, check_bandpass, fir_valid
+from hybrid_sysid.core.checks import format_value
+from hybrid_sysid.core.options import FILTERS, SPANS, UNKNOWNS
 from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
+from hybrid_sysid.data.spec import check_filter_fits
 from hybrid_sysid.physics import relative_states
-
-SPANS = ("window", "series")
-FILTERS = ("none", "bandpass")
-UNKNOWNS = ("p", "m3")
+from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass, fir_valid
 _SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
 
 
@@ -69,7 +68,7 @@ def fit_p(seat: np.ndarray, rel_vel: np.ndarray, rel_disp: np.ndarray, taps: np.
     return q[:, None] * np.asarray(car, dtype=np.float64)
 
 
-class LeastSquaresEstimator:
+class LeastSquaresFit:
     """Least-squares (p1, p2) per recording, evaluated like a trained network.
 
     span "window": per evaluation window, on the regressors the hybrid objective gets: the data module's
@@ -87,24 +86,22 @@ class LeastSquaresEstimator:
         so p = (C3, K3) / m3 is one parameter (the paper's own premise).
     """
 
-    trainable = False  # train() evaluates it directly, without Lightning
-
     def __init__(self, span: str = "window", filter: str = "none", low_hz: float = 4.0, high_hz: float = 20.0,
                  taps: int = 151, dt: float = 0.005, unknown: str = "p", c3: float | None = None,
                  k3: float | None = None):
         if span not in SPANS:
-            raise ValueError(f"model.net.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
+            raise ValueError(f"baseline.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
         if filter not in FILTERS:
-            raise ValueError(f"model.net.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
+            raise ValueError(f"baseline.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
         if unknown not in UNKNOWNS:
-            raise ValueError(f"model.net.unknown = {format_value(unknown)} is not allowed: "
+            raise ValueError(f"baseline.unknown = {format_value(unknown)} is not allowed: "
                              f"one of {', '.join(UNKNOWNS)}")
         for key, value in (("c3", c3), ("k3", k3)):
             if unknown == "m3" and not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"model.net.{key} = {format_value(value)} is not allowed: must be finite and > 0 "
+                raise ValueError(f"baseline.{key} = {format_value(value)} is not allowed: must be finite and > 0 "
                                  "with unknown = m3 (the car's constant, ${car." + key + "})")
         self.car = (float(c3), float(k3)) if unknown == "m3" else None
-        check_bandpass(low_hz, high_hz, taps, dt)  # checked even when unused, so a typo never waits
+        check_bandpass(low_hz, high_hz, taps, dt, prefix="baseline")  # checked even when unused, so a typo never waits
         self.span, self.filter = span, filter
         self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt) if filter == "bandpass" else None
@@ -115,12 +112,10 @@ class LeastSquaresEstimator:
         if self.fir is None:
             return
         length, key = (window, "data.window") if self.span == "window" else (n_steps, "data.n_steps")
-        if self.taps > length - 9:
-            raise ValueError(f"model.net.taps = {self.taps} is not allowed: must be <= {key} - 9 = {length - 9} "
-                             f"(the band-pass must leave at least 10 samples of each {self.span})")
+        check_filter_fits(self.taps, length, "baseline.taps", key)
 
     def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1):
-        """Estimates and truth, float64 (n, 2), one row per recording: ParameterEstimator's interface."""
+        """Estimates and truth, float64 (n, 2), one row per recording (model.base.SplitPredictor)."""
         start = time.perf_counter()
         dm.setup()
         self.check_lengths(dm.window, dm.data.n_steps)

@@ -1,5 +1,7 @@
-"""Parameter estimators (CNNs) and training objectives (labelled, hybrid, combined)."""
+"""Parameter estimators (CNNs), training objectives (labelled, hybrid, combined), the LightningModule around them
+and the protocol every estimator meets (base.SplitPredictor)."""
 
+from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.model.networks import FastCNN, PaperCNN
 from hybrid_sysid.model.objectives import CombinedObjective, HybridObjective, LabelledObjective
 
@@ -9,4 +11,5 @@ __all__ = [
     "HybridObjective",
     "LabelledObjective",
     "PaperCNN",
+    "SplitPredictor",
 ]

@@ -1,4 +1,4 @@
-"""ParameterEstimator: a network, a swappable objective, the optimiser, and predictions on fixed windows."""
+"""IdentificationModule: a network, a swappable objective, the optimiser, and predictions on fixed windows."""
 
 from __future__ import annotations
 
@@ -9,21 +9,20 @@ import numpy as np
 import torch
 from torch import nn
 
+from hybrid_sysid.core.options import OPTIMIZERS, SCHEDULES
 from hybrid_sysid.model.metrics import relative_deviation
 
-OPTIMIZERS = {"adam": torch.optim.Adam, "adamw": torch.optim.AdamW}
-SCHEDULES = ("constant", "onecycle", "cosine")
 LOG_EVERY = 50  # steps between progress-bar updates of the training loss
 
 
-class ParameterEstimator(L.LightningModule):
+class IdentificationModule(L.LightningModule):
     """Predicts (p1, p2) from a window of (seat, body) accelerations.
 
     The network maps signals to physical (p1, p2); the objective maps (pred, batch) to a loss. Lightning's
     automatic optimisation takes the steps (so gradient clipping, accumulation and precision settings of the
     Trainer apply). Validation logs ``val/loss`` (the training objective on clean validation windows: label-free
     for the hybrid objective) and ``val/rel_dev`` (mean relative deviation over both parameters: uses labels).
-    The learning curves are recorded by a callback of the training layer (hybrid_sysid.callbacks).
+    The learning curves are recorded by a callback of the training layer (hybrid_sysid.training.callbacks).
     """
 
     def __init__(self, net: nn.Module, objective: nn.Module, optimizer: str = "adamw", lr: float = 3e-3,
@@ -92,7 +91,7 @@ class ParameterEstimator(L.LightningModule):
 
     def configure_optimizers(self):
         hp = self.hparams
-        opt = OPTIMIZERS[hp.optimizer](self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
+        opt = getattr(torch.optim, OPTIMIZERS[hp.optimizer])(self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
         if hp.schedule == "constant":
             return opt
         if hp.schedule == "onecycle":

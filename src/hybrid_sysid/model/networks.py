@@ -14,9 +14,8 @@ from typing import Sequence
 import torch
 from torch import nn
 
-from hybrid_sysid.model.checks import check_int, check_pair
-
-ACTIVATIONS = {"tanh": nn.Tanh, "relu": nn.ReLU, "none": nn.Identity}
+from hybrid_sysid.core.checks import check_int, check_pair
+from hybrid_sysid.core.options import ACTIVATIONS, DOWNSAMPLES
 
 
 class PaperCNN(nn.Module):
@@ -34,12 +33,12 @@ class PaperCNN(nn.Module):
     def __init__(self, p_scale: Sequence[float], window: int = 500, in_channels: int = 2,
                  activation: str = "tanh"):
         super().__init__()
-        window = check_int("window", window, 59)  # both 'valid' convolutions need 50 + 10 - 1 samples
+        window = check_int("window", window, self.shortest_window())
         in_channels = check_int("in_channels", in_channels, 1)
         if activation not in ACTIVATIONS:
             raise ValueError(f"activation = {activation!r} is unknown; allowed: {', '.join(ACTIVATIONS)}")
         self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
-        act = ACTIVATIONS[activation]
+        act = getattr(nn, ACTIVATIONS[activation])
         flat = 100 * (window - 50 + 1 - 10 + 1)
         self.net = nn.Sequential(
             nn.Conv1d(in_channels, 100, kernel_size=50), nn.Tanh(),
@@ -49,6 +48,11 @@ class PaperCNN(nn.Module):
             nn.Linear(100, 10), act(),
             nn.Linear(10, 2),
         )
+
+    @staticmethod
+    def shortest_window(**arguments) -> int:
+        """The shortest window it reads: both 'valid' convolutions need 50 + 10 - 1 samples."""
+        return 59
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         return self.net(signals).abs() * self.p_scale
@@ -89,8 +93,8 @@ class FastCNN(nn.Module):
             raise ValueError(f"margin = {margin} is invalid; it must be in [0, 1]")
         if not (math.isfinite(bn_momentum) and 0 < bn_momentum <= 1):
             raise ValueError(f"bn_momentum = {bn_momentum} is invalid; it must be in (0, 1]")
-        if downsample not in ("pool", "stride"):
-            raise ValueError(f"downsample = {downsample!r} is unknown; allowed: pool, stride")
+        if downsample not in DOWNSAMPLES:
+            raise ValueError(f"downsample = {downsample!r} is unknown; allowed: {', '.join(DOWNSAMPLES)}")
         if diff_channel and in_channels != 2:
             raise ValueError(f"in_channels = {in_channels} is invalid with diff_channel=True; it must be 2")
         lo, hi = check_pair("p_min", p_min), check_pair("p_max", p_max)
@@ -112,6 +116,11 @@ class FastCNN(nn.Module):
             c_in = channels
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(channels, 2)
+
+    @staticmethod
+    def shortest_window(n_layers: int = 4, **arguments) -> int:
+        """The shortest window it reads: each layer halves the sequence, which must keep a sample."""
+        return 2 ** int(n_layers)
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         # per-window scale from the body channel; the floor only guards an all-zero (parked) window

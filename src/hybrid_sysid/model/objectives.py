@@ -15,11 +15,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.model.checks import check_pair
+from hybrid_sysid.core.checks import check_pair, format_value
+from hybrid_sysid.core.options import NORMS, WEIGHTINGS
 from hybrid_sysid.physics import relative_states
-from hybrid_sysid.physics.filters import WEIGHTINGS, filter_taps
+from hybrid_sysid.physics.filters import filter_taps
 
-_NORMS = ("l1", "l2")
+
 def noise_gram(fir: np.ndarray, dt: float, measurement: str) -> np.ndarray:
     """(3, 3) G with Var(filtered residual) = sigma^2 (1, p1, p2) G (1, p1, p2)^T under white noise of std sigma
     on both channels, the residual being seat_f + p1 rel_vel_f + p2 rel_disp_f.
@@ -49,11 +50,12 @@ class LabelledObjective(nn.Module):
     """
 
     uses_labels = True  # model selection may then use the labelled val/rel_dev (trainer.monitor=auto)
+    fir = None  # no band-pass: the data module adds no filtered signals to the batches
 
     def __init__(self, p_scale: Sequence[float], norm: str = "l1"):
         super().__init__()
-        if norm not in _NORMS:
-            raise ValueError(f"norm = {norm!r} is unknown; allowed: {', '.join(_NORMS)}")
+        if norm not in NORMS:
+            raise ValueError(f"norm = {norm!r} is unknown; allowed: {', '.join(NORMS)}")
         self.norm = norm
         self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
 
@@ -102,18 +104,22 @@ class HybridObjective(nn.Module):
         self.eps = float(eps)
         self.filter, self.weighting = (dict(filter) if filter is not None else None), weighting
         self.keys = ("seat_f", "rel_vel_f", "rel_disp_f") if filter is not None else ("rel_vel", "rel_disp")
+        # the band-pass taps (float64) the data module filters the batches with (hybrid_sysid.training.build),
+        # so the batches always carry what this objective reads; None without a filter
+        self.fir: np.ndarray | None = None
         if filter is not None:
             if dt is None:
                 raise ValueError("objective.dt is missing: a filtered objective needs the data's step (${data.dt})")
-            fir = filter_taps(self.filter, dt)
+            self.fir = filter_taps(self.filter, dt)
             if weighting == "eiv":
-                self.register_buffer("gram", torch.tensor(noise_gram(fir, dt, measurement), dtype=torch.float32))
+                self.register_buffer("gram", torch.tensor(noise_gram(self.fir, dt, measurement),
+                                                          dtype=torch.float32))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         if self.filter is not None:
             if "seat_f" not in batch:
                 raise KeyError("objective.filter is set but the batch has no filtered signals: build the data "
-                               "module with the objective's filter (hybrid_sysid.train.build_datamodule does)")
+                               "module with the objective's fir (hybrid_sysid.training.build.build_datamodule does)")
             seat, rel_vel, rel_disp = (batch[k].to(pred) for k in self.keys)
         else:
             seat = batch["signals"][:, 0].to(pred)
@@ -137,16 +143,18 @@ class CombinedObjective(nn.Module):
         super().__init__()
         for name, w in (("labelled_weight", labelled_weight), ("hybrid_weight", hybrid_weight)):
             if not (math.isfinite(w) and w >= 0):
-                raise ValueError(f"objective: {name} = {w} is invalid; it must be finite and >= 0")
+                raise ValueError(f"objective.{name} = {w} is not allowed: must be finite and >= 0")
         if labelled_weight == 0 and hybrid_weight == 0:
-            raise ValueError("objective: labelled_weight and hybrid_weight must not both be zero "
-                             f"(got {labelled_weight}, {hybrid_weight}); allowed: >= 0 with a positive sum")
+            raise ValueError(f"objective.labelled_weight / objective.hybrid_weight = [{format_value(labelled_weight)}, "
+                             f"{format_value(hybrid_weight)}] is not allowed: labelled_weight and hybrid_weight must "
+                             "not both be zero")
         self.labelled_weight, self.hybrid_weight = float(labelled_weight), float(hybrid_weight)
         self.labelled = LabelledObjective(p_scale=p_scale, norm=norm)
         self.hybrid = HybridObjective(normalize=normalize, eps=eps, filter=filter, weighting=weighting, dt=dt,
                                       measurement=measurement)
         # with labelled_weight 0 the combination is label-free, and model selection must stay so too
         self.uses_labels = self.labelled_weight > 0
+        self.fir = self.hybrid.fir
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         # a zero weight skips its term, so a hybrid-only combination still never reads the labels

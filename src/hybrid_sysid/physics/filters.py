@@ -9,7 +9,7 @@ drop the frequencies where noise dominates:
 - above ~15-20 Hz the seat hardly moves relative to the body (its resonance sqrt(p2) / (2 pi) is 3.5-7 Hz),
   while white sensor noise goes on up to the Nyquist frequency (100 Hz at dt = 5 ms).
 
-The default band (see LeastSquaresEstimator and conf/model/ls_bandpass.yaml) keeps the resonance region.
+The default band (see LeastSquaresFit and conf/baseline/ls_bandpass.yaml) keeps the resonance region.
 """
 
 from __future__ import annotations
@@ -18,15 +18,11 @@ import numbers
 
 import numpy as np
 
-
-def format_value(value) -> str:
-    """A value as an error message shows it: numbers in %g, anything else by repr."""
-    if isinstance(value, numbers.Real) and not isinstance(value, bool):
-        return f"{value:g}"
-    return repr(value)
+from hybrid_sysid.core.checks import format_value
+from hybrid_sysid.core.options import FILTER_KEYS
 
 
-def check_bandpass(low_hz, high_hz, taps, dt, prefix: str = "model.net") -> None:
+def check_bandpass(low_hz, high_hz, taps, dt, prefix: str = "baseline") -> None:
     """Raise ValueError naming the key, the value and what is allowed."""
     def bad(key, value, allowed):
         raise ValueError(f"{prefix}.{key} = {format_value(value)} is not allowed: {allowed}")
@@ -59,12 +55,6 @@ def bandpass_taps(low_hz: float, high_hz: float, taps: int, dt: float) -> np.nda
     n = np.arange(taps) - (taps - 1) / 2
     window = np.blackman(taps)
     return _lowpass(high_hz * dt, n, window) - _lowpass(low_hz * dt, n, window)
-
-
-# objective.weighting and objective.filter's keys (hybrid_sysid.model.objectives; checked by the config too,
-# which loads no torch)
-WEIGHTINGS = ("none", "eiv")
-FILTER_KEYS = ("low_hz", "high_hz", "taps")
 
 
 def filter_taps(filter: dict, dt: float) -> np.ndarray:

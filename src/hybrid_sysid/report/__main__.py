@@ -1,5 +1,5 @@
 import sys
 
-from hybrid_sysid.report.cli import main
+from hybrid_sysid.cli.report import main
 
 sys.exit(main())

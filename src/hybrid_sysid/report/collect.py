@@ -17,7 +17,8 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from hybrid_sysid.records import RECORD
+from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.records import RECORD
 
 HEAD = ["run", "status", "error", "seed"]
 TAIL = ["split", "noise_std", "windows", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds",
@@ -34,13 +35,13 @@ def _yaml(path: Path):
 
 def run_config(run_dir) -> dict:
     """The run's composed config as Hydra saved it (interpolations unresolved), {} if absent."""
-    cfg = _yaml(Path(run_dir) / ".hydra" / "config.yaml")
+    cfg = _yaml(RunDir(run_dir).config_file)
     return cfg if isinstance(cfg, dict) else {}
 
 
 def run_choices(run_dir) -> dict:
     """The run's config-group choices (objective, model, data, ...), {} if absent."""
-    return config_value(_yaml(Path(run_dir) / ".hydra" / "hydra.yaml"), "hydra.runtime.choices") or {}
+    return config_value(_yaml(RunDir(run_dir).hydra_file), "hydra.runtime.choices") or {}
 
 
 def config_value(cfg, dotted: str):
@@ -97,7 +98,7 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
     except (OSError, ValueError, TypeError, KeyError, AttributeError) as exc:
         # Hydra writes .hydra/overrides.yaml before a job starts, so a job whose record is corrupt still has a
         # known configuration and lands in the right row of the table
-        overrides = _overrides(_yaml(run_dir / ".hydra" / "overrides.yaml"))
+        overrides = _overrides(_yaml(RunDir(run_dir).overrides_file))
         seed = overrides.get("seed", "")
         base = {"run": name, "status": "unreadable", "error": f"{type(exc).__name__}: {exc}",
                 "seed": int(seed) if seed.lstrip("-").isdigit() else None}

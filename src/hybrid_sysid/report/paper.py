@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.files import write_atomic
+from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report.collect import load_runs, natural_key, run_choices, row_keys
 from hybrid_sysid.report.protocol import protocol
 from hybrid_sysid.report.tables import K_LEVEL, markdown_table

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.files import write_atomic
+from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.paper import LEGEND, comparison_markdown

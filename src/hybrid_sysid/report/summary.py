@@ -7,7 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.files import write_atomic
+from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
 from hybrid_sysid.report.tables import (K_LEVEL, METRICS, compared_level, paired_deviations, row_label,

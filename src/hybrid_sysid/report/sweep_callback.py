@@ -1,7 +1,7 @@
 """Hydra callback that ends every sweep with its comparison table.
 
 Hydra skips on_multirun_end when a job raised, and with the joblib launcher job callbacks run in worker
-processes; so jobs record their own failure and return normally (see hybrid_sysid.app), and the summary here is
+processes; so jobs record their own failure and return normally (see hybrid_sysid.cli.train), and the summary here is
 built from the run records on disk alone. A sweep with a failed job still exits non-zero.
 
 Options, set under hydra.callbacks.sweep_summary: ``reproduction: true`` (conf/experiment/paper.yaml) also
@@ -23,7 +23,7 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
 from hybrid_sysid.report.paper import write_reproduction
-from hybrid_sysid.files import write_atomic
+from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report.summary import threads_warning, write_summary
 from hybrid_sysid.report.sweep_figures import transfer_figure, tuning_figure
 from hybrid_sysid.report.tables import to_markdown

@@ -1,5 +1,5 @@
 """experiment=tuned's searches as a table: per job (objective), the validation figure of the default values
-(trial 0) and of the best trial, and the best values (hybrid_sysid.tuned writes them to <job>/search/best.yaml)."""
+(trial 0) and of the best trial, and the best values (hybrid_sysid.experiments.tuned writes them to <job>/search/best.yaml)."""
 
 from __future__ import annotations
 

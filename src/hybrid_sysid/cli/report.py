@@ -10,7 +10,7 @@ import shlex
 import sys
 from pathlib import Path
 
-from hybrid_sysid.records import RECORD
+from hybrid_sysid.runs.records import RECORD
 from hybrid_sysid.report.collect import find_runs
 from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.report.results_page import write_results

@@ -6,14 +6,10 @@ import json
 import logging
 from pathlib import Path
 
-from hybrid_sysid.files import write_atomic
+from hybrid_sysid.core.files import write_json_atomic
 
 RECORD = "metrics.json"
 log = logging.getLogger("hybrid_sysid")
-
-
-def write_json_atomic(path: Path, payload: dict) -> None:
-    write_atomic(path, lambda tmp: tmp.write_text(json.dumps(payload, indent=2) + "\n"))
 
 
 class CompletedRecordError(RuntimeError):
@@ -34,13 +30,6 @@ def write_record(run_dir: Path, record: dict) -> None:
     if completed_record(run_dir) is not None:
         raise CompletedRecordError(f"{Path(run_dir) / RECORD} holds a completed run; not replacing it")
     write_json_atomic(Path(run_dir) / RECORD, record)
-
-
-def write_yaml_atomic(path: Path, payload) -> None:
-    import yaml
-
-    path.parent.mkdir(parents=True, exist_ok=True)
-    write_atomic(path, lambda tmp: tmp.write_text(yaml.safe_dump(payload, sort_keys=False)))
 
 
 def run_record(status: str, overrides: list[str], seed: int, steps: int = 0, train_seconds: float = 0.0,

@@ -13,7 +13,7 @@ from typing import Sequence
 import lightning as L
 
 from hybrid_sysid.model.metrics import summarise
-from hybrid_sysid.tracking import curve_metrics, log_metrics
+from hybrid_sysid.training.tracking import curve_metrics, log_metrics
 
 CURVE_COLUMNS = ["step", "seconds", "split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]
 

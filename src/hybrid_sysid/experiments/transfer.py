@@ -5,7 +5,7 @@ One job per seed (the sweep runs them side by side) trains, in order, in its own
 - ``source/``: the labelled objective on the config's car (the paper's), evaluated there;
 - for each target scenario (``transfer.scenarios``: another car preset, other data values):
   ``<scenario>/source``: that network evaluated on the target's test roads, no training
-  (hybrid_sysid.train.evaluate_run, what hybrid-sysid-eval runs);
+  (hybrid_sysid.training.run.evaluate_checkpoint, what hybrid-sysid-eval runs);
   ``<scenario>/adapted``: that network, then ``transfer.adapt_steps`` steps of the hybrid objective on the
   target's unlabelled training recordings (``init_from``; model selection by the label-free val/loss);
   ``<scenario>/scratch``: the hybrid objective from random weights on the target;
@@ -23,9 +23,11 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.chain import group, write_run_files
-from hybrid_sysid.config import ConfigError, validate
-from hybrid_sysid.train import evaluate_run, train
+from hybrid_sysid.config import validate
+from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.experiments.presets import preset
+from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.training.run import evaluate_checkpoint, train
 
 log = logging.getLogger("hybrid_sysid")
 # table rows, numbered so they sort in the order the scenario reads
@@ -35,9 +37,9 @@ SCENARIO_KEYS = ("car", "data")
 
 
 def variant(cfg: DictConfig, objective: str, **changes) -> DictConfig:
-    """A copy of the config with another objective and the given dotted keys changed; no transfer block."""
-    out = OmegaConf.merge(cfg, {"transfer": None})
-    out.objective = group("objective", objective, "transfer")
+    """A copy of the config for one run (task=train) with another objective and the given dotted keys changed."""
+    out = OmegaConf.merge(cfg, {"task": "train", "transfer": None})
+    out.objective = preset("objective", objective, "transfer")
     for key, value in changes.items():
         OmegaConf.update(out, key.replace("__", "."), value, merge=False)
     return out
@@ -51,7 +53,7 @@ def target(cfg: DictConfig, name: str, scenario) -> DictConfig:
                           f"{' and '.join(SCENARIO_KEYS)}")
     out = OmegaConf.merge(cfg, {"data": scenario.get("data") or {}})
     if scenario.get("car"):
-        out.car = group("car", scenario.car, f"transfer.scenarios.{name}")
+        out.car = preset("car", scenario.car, f"transfer.scenarios.{name}")
     return out
 
 
@@ -80,15 +82,16 @@ def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, li
 def run_chain(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     """Every sub-run of one seed, in order (module docstring). Each sub-run directory gets its config in
     .hydra/config.yaml, as a run of hybrid-sysid has (so hybrid-sysid-eval and load_estimator read it), and a
-    record whose overrides are the job's plus scenario and row. Returns a short record of what ran."""
+    record whose overrides are the job's plus scenario and row. Every sub-run is validated by ``plan``, before
+    the first one starts. Returns a short record of what ran."""
     job_dir = Path(job_dir)
     runs = plan(cfg, job_dir)
     for kind, sub, run_dir, overrides, source in runs:
         overrides = [o for o in job_overrides if not o.startswith("seed=")] + overrides + [f"seed={cfg.seed}"]
         log.info("transfer: %s %s", kind, " ".join(overrides))
-        write_run_files(run_dir, sub, overrides)
+        RunDir(run_dir).write_config(sub, overrides)
         if kind == "eval":
-            evaluate_run(sub, source, run_dir, overrides)
+            evaluate_checkpoint(sub, source, run_dir, overrides, checked=True)
         else:
-            train(sub, run_dir, overrides)
+            train(sub, run_dir, overrides, checked=True)
     return {"status": "completed", "runs": [str(r[2].relative_to(job_dir)) for r in runs]}

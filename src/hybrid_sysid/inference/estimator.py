@@ -3,7 +3,7 @@
 ``load_estimator(run_dir).predict(seat_acc, body_acc, dt)`` cuts K evenly spaced windows from each recording,
 gives them to the run's network exactly as training did (float32, shaped (batch, 2, data.window), channel 0
 seat, channel 1 body; eval mode, no gradients) and averages the K estimates. The command
-``hybrid-sysid-predict`` (hybrid_sysid.predict) only reads files and prints; it calls this same code.
+``hybrid-sysid-predict`` (hybrid_sysid.cli.predict) only reads files and prints; it calls this same code.
 """
 
 from __future__ import annotations
@@ -19,9 +19,9 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from scipy.signal import resample_poly
 
-from hybrid_sysid.baselines import is_baseline
 from hybrid_sysid.physics import QuarterCar
-from hybrid_sysid.train import build_model
+from hybrid_sysid.runs.rundir import CHECKPOINTS, CONFIG, RunDir
+from hybrid_sysid.training.build import build_model
 
 DT_RTOL = 1e-9  # a recording's dt counts as the run's data.dt within this relative difference
 # The resampling ratio is a fraction with a denominator up to MAX_DENOMINATOR; the rate it gives may miss the
@@ -44,32 +44,30 @@ def load_estimator(run_dir: str | Path, checkpoint: str | Path | None = None) ->
     run never validated, last.ckpt; "best", "last" or a path pick one. A baseline run (no network) or a
     directory without a config or checkpoint raises InputError (a ValueError) in one line.
     """
-    run_dir = Path(run_dir)
-    path = run_dir / ".hydra" / "config.yaml"
-    if not path.is_file():
-        raise InputError(f"run = {run_dir} has no .hydra/config.yaml; allowed: a run directory written by "
-                         "hybrid-sysid")
+    run = RunDir(run_dir)
+    if not run.config_file.is_file():
+        raise InputError(f"run = {run.path} has no {CONFIG}; allowed: a run directory written by hybrid-sysid")
     try:
-        cfg = OmegaConf.load(path)
+        cfg = OmegaConf.load(run.config_file)
     except Exception as exc:  # yaml's own errors are many classes; the message says which
-        raise InputError(f"run = {run_dir}: cannot read .hydra/config.yaml ({type(exc).__name__}: {exc})") from None
-    target = str(OmegaConf.select(cfg, "model.net._target_", default=""))
-    if is_baseline(target):
-        raise InputError(f"run = {run_dir} is a baseline (model.net._target_ = {target}) without a trained "
-                         "network; allowed: a run of a network model (fast_cnn, paper_cnn)")
-    return Estimator(_network(cfg, _checkpoint_path(run_dir, checkpoint)), cfg)
+        raise InputError(f"run = {run.path}: cannot read {CONFIG} ({type(exc).__name__}: {exc})") from None
+    baseline = OmegaConf.select(cfg, "baseline", default=None)
+    if baseline is not None:
+        raise InputError(f"run = {run.path} is a baseline (baseline._target_ = {baseline.get('_target_')}) without a "
+                         "trained network; allowed: a run of a network model (fast_cnn, paper_cnn)")
+    return Estimator(_network(cfg, _checkpoint_path(run, checkpoint)), cfg)
 
 
-def _checkpoint_path(run_dir: Path, checkpoint) -> Path:
-    names = ("best.ckpt", "last.ckpt") if checkpoint is None else (f"{checkpoint}.ckpt",)
+def _checkpoint_path(run: RunDir, checkpoint) -> Path:
+    names = CHECKPOINTS if checkpoint is None else (f"{checkpoint}.ckpt",)
     if checkpoint is not None and str(checkpoint) not in ("best", "last"):
         candidates = [Path(checkpoint)]
     else:
-        candidates = [run_dir / "checkpoints" / n for n in names]
+        candidates = [run.checkpoints / n for n in names]
     for path in candidates:
         if path.is_file():
             return path
-    raise InputError(f"run = {run_dir} has no checkpoint {' or '.join(str(p) for p in candidates)}; allowed: "
+    raise InputError(f"run = {run.path} has no checkpoint {' or '.join(str(p) for p in candidates)}; allowed: "
                      "a run that trained a network (hybrid-sysid writes checkpoints/best.ckpt and last.ckpt)")
 
 
@@ -124,7 +122,7 @@ class Estimator:
                 if bad.size:
                     raise InputError(f"{channel} of recording {name!r} holds {x[bad[0]]} at step {bad[0]}: "
                                      "every value must be finite")
-            signals = np.stack([seat, body])  # channel 0 seat, 1 body, as QCMData.batch stacks them
+            signals = np.stack([seat, body])  # channel 0 seat, 1 body, as WindowCutter.batch stacks them
             if dt != self.dt:
                 signals = resample_to(signals, dt, self.dt)
             steps.append(signals.shape[1])

@@ -26,12 +26,12 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.app import record_end
-from hybrid_sysid.chain import group, write_run_files
-from hybrid_sysid.config import ConfigError, validate
-from hybrid_sysid.files import write_atomic
-from hybrid_sysid.records import write_yaml_atomic
-from hybrid_sysid.train import train
+from hybrid_sysid.config import validate
+from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
+from hybrid_sysid.experiments.presets import preset
+from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.training.run import train
 
 log = logging.getLogger("hybrid_sysid")
 SEARCH, DEFAULT, TUNED = "search", "default", "tuned"  # sub-directories of a job, and the values of ``tuning``
@@ -77,9 +77,9 @@ def defaults_in(cfg: DictConfig, space: dict) -> dict:
 
 
 def with_values(cfg: DictConfig, values: dict, seed: int, extra=None) -> DictConfig:
-    """A copy of the config for one sub-run: no tuned block, ``extra`` merged (a preset's trainer settings), the
+    """A copy of the config for one sub-run (task=train): ``extra`` merged (a preset's trainer settings), the
     values set and the seed."""
-    out = OmegaConf.merge(cfg, {"tuned": None}, extra or {})
+    out = OmegaConf.merge(cfg, {"task": "train", "tuned": None}, extra or {})
     for key, value in values.items():
         OmegaConf.update(out, key, value, merge=False)
     out.seed = seed
@@ -92,7 +92,7 @@ def as_overrides(values: dict) -> list[str]:
 
 def run_sub(sub: DictConfig, run_dir: Path, overrides: list[str]) -> dict:
     log.info("tuned: %s", " ".join(overrides))
-    write_run_files(run_dir, sub, overrides)
+    RunDir(run_dir).write_config(sub, overrides)
     return train(sub, run_dir, overrides)
 
 
@@ -101,8 +101,7 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     import optuna
 
     job_dir, t = Path(job_dir), cfg.tuned
-    preset = group("hparams_search", t.search, "tuned.search")
-    sweeper = preset.hydra.sweeper
+    sweeper = preset("hparams_search", t.search, "tuned.search").hydra.sweeper
     space = search_space(sweeper.params)
     trial_settings = {"trainer": {"curve_every_n_steps": None}}  # a trial is scored on validation alone
     defaults = defaults_in(cfg, space)
@@ -132,7 +131,7 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
         except Exception as exc:  # noqa: BLE001 - a trial that fails is a failed trial; the study goes on
             error = f"{type(exc).__name__}: {exc}"
             log.error("tuned: trial %d failed: %s", n, error)
-            record_end(run_dir, overrides, t.trial_seed, "failed", error)
+            RunDir(run_dir).record_end(overrides, t.trial_seed, "failed", error)
             score = None
         if score is None:
             study.tell(trial, state=optuna.trial.TrialState.FAIL)

@@ -1,0 +1,104 @@
+"""``hybrid-sysid``: compose the config, check it, run its task (one run, a transfer chain, a tuned comparison),
+draw the run's figures. The job's signals, interruption and failure records: hybrid_sysid.cli.job.
+
+Under a hyperparameter search (hydra-optuna-sweeper, conf/hparams_search) a job returns one number: the
+validation figure its model selection used (``best_score`` of its record: val/loss for a label-free objective,
+val/rel_dev otherwise; trainer.monitor). A failed job returns None, which the sweeper cannot cast to a number:
+it records a failed trial and the study goes on (a NaN would stop the whole study in optuna's ``tell``).
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+import hydra
+from hydra.core.hydra_config import HydraConfig
+from hydra.types import RunMode
+from omegaconf import DictConfig
+
+from hybrid_sysid import config
+from hybrid_sysid.cli.job import Preflight, console_main, run_job
+from hybrid_sysid.config import validate
+from hybrid_sysid.runs.rundir import RunDir
+
+log = logging.getLogger("hybrid_sysid")
+# the option that moved: a baseline is chosen with baseline=, not model=
+MOVED = {"model=ls_": "baseline=ls_"}
+
+
+class TrainPreflight(Preflight):
+    """Preflight (hybrid_sysid.cli.job) that also checks the config's values and its ``resume=`` directory."""
+
+    def check(self, cfg: DictConfig, overrides: list[str]) -> None:
+        validate(cfg)
+        if cfg.get("resume"):
+            RunDir(str(cfg.resume)).check_resume(cfg)
+
+
+def search_value(record: dict) -> float | None:
+    """What a job returns to a hyperparameter search: its model-selection figure, None if it has none."""
+    value = record.get("best_score")
+    return None if value is None else float(value)
+
+
+def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, experiment: str | None,
+             run_name: str | None) -> dict:
+    """The job's task (``task``): imported here, so a sweep's parent process, which only composes and launches
+    jobs, loads no torch."""
+    if cfg.task == "transfer":
+        from hybrid_sysid.experiments.transfer import run_chain
+
+        return run_chain(cfg, run_dir, overrides)
+    if cfg.task == "tuned":
+        from hybrid_sysid.experiments.tuned import run_tuned
+
+        return run_tuned(cfg, run_dir, overrides)
+    from hybrid_sysid.training.run import train
+
+    # a single run's config was validated by the preflight; a sweep's job has had no preflight
+    return train(cfg, run_dir, overrides, experiment=experiment, run_name=run_name, checked=not multirun)
+
+
+@hydra.main(version_base="1.3", config_path=config.CONF_DIR, config_name="config")
+def hydra_main(cfg: DictConfig) -> Any:
+    hc = HydraConfig.get()
+    run_dir, overrides = Path(hc.runtime.output_dir), list(hc.overrides.task)
+    multirun = hc.mode == RunMode.MULTIRUN
+    searching = "optuna" in str(hc.sweeper.get("_target_", ""))
+    sweep_dir = Path(hc.sweep.dir) if multirun else None
+    # in a tracker, a sweep's jobs are runs of one experiment named after the sweep directory
+    experiment = sweep_dir.name if multirun else None
+    record = run_job(lambda: run_task(cfg, run_dir, overrides, multirun, experiment, hc.job.override_dirname or None),
+                     run_dir, overrides, cfg.get("seed", 0), multirun=multirun, sweep_dir=sweep_dir,
+                     again=f"continue it with resume={run_dir} (a sweep: run the same command again)")
+    if cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
+        _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
+    return search_value(record) if searching else record
+
+
+def _draw_figures(run_dir: Path) -> None:
+    """The run's figures, from its files; the run is complete without them, so a failure here is a warning."""
+    try:
+        from hybrid_sysid.report.run_figures import write_run_figures
+
+        write_run_figures(run_dir)
+    except Exception as exc:  # noqa: BLE001 - e.g. a full disk: the record already holds every number
+        log.warning("run figures not drawn in %s: %s: %s", run_dir, type(exc).__name__, exc)
+
+
+def main() -> None:
+    """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.cli.job)."""
+    for arg in sys.argv[1:]:
+        for old, new in MOVED.items():
+            if arg.startswith(old):
+                print(f"error: {arg} is not allowed: the baselines are a config group of their own: "
+                      f"{arg.replace(old, new, 1)}", file=sys.stderr)
+                sys.exit(2)
+    console_main(hydra_main, sys.argv[1:])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,36 @@
+"""The config's resolvers and its registration with Hydra: ``${p_prior:...}`` derives the prior of p from the
+car and the data, ``${first_set:...}`` picks the run directory."""
+
+from __future__ import annotations
+
+from hydra.core.config_store import ConfigStore
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.config.schema import Config, EvalConfig
+from hybrid_sysid.core.checks import bad
+from hybrid_sysid.data.spec import DatasetSpec
+
+
+def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
+    """``${p_prior:min}``, ``${p_prior:max}`` or ``${p_prior:scale}`` in the model and objective configs: the
+    prior range of p = (C3, K3) / m3 for the config's car and seat masses, from p_min = (C3, K3) (1 - s) /
+    data.m3_max to p_max = (C3, K3) (1 + s) / data.m3_min (s: data.seat_spread, 0 for the paper's data), or its
+    midpoint (the label scale). Derived here, once, so an override of the car, of the mass range or of the seat
+    spread moves the networks' bounds and the labelled objective's scale with the data."""
+    spec = DatasetSpec.from_config(_root_)
+    s = spec.seat_spread
+    p_min = [p * (1 - s) for p in spec.car.parameters(spec.m3_max)]
+    p_max = [p * (1 + s) for p in spec.car.parameters(spec.m3_min)]
+    pairs = {"min": p_min, "max": p_max, "scale": [(a + b) / 2 for a, b in zip(p_min, p_max)]}
+    if which not in pairs:
+        bad("p_prior", which, f"one of {', '.join(pairs)}")
+    return [float(v) for v in pairs[which]]
+
+
+def register() -> None:
+    """The schema for Hydra and two resolvers: ``p_prior`` (above), and ``first_set`` for the run directory
+    (hydra.run.dir is ``resume`` when given, else a new time-stamped directory)."""
+    ConfigStore.instance().store(name="schema", node=Config)
+    ConfigStore.instance().store(name="eval_schema", node=EvalConfig)
+    OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
+    OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)

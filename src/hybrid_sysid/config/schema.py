@@ -1,0 +1,157 @@
+"""Structured-config schemas (Hydra's ConfigStore): an unknown key or a wrong type fails when Hydra composes.
+
+One dataclass per section of the config. The data section has no list of its own: its keys are the fields of
+``DatasetSpec`` (what changes the simulated data) and ``WindowSettings`` (how the data module cuts it), plus
+where the cache lies, so a new data value is declared once, where it is used.
+"""
+
+from __future__ import annotations
+
+import typing
+from dataclasses import MISSING as NO_DEFAULT
+from dataclasses import asdict, dataclass, field, fields, make_dataclass
+from pathlib import Path
+from typing import Any, Dict, List, Optional
+
+from omegaconf import MISSING
+
+from hybrid_sysid.data.spec import OUTSIDE_DATA, DatasetSpec, WindowSettings
+from hybrid_sysid.physics import QuarterCar
+
+CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # inside the package, so an installed wheel has it
+
+
+def _data_fields() -> list:
+    out = []
+    for cls in (DatasetSpec, WindowSettings):
+        hints = typing.get_type_hints(cls)
+        for f in fields(cls):
+            if f.name not in OUTSIDE_DATA:
+                default = f.default if f.default is not NO_DEFAULT else MISSING
+                out.append((f.name, hints[f.name], field(default=default)))
+    return out + [("cache_dir", str, field(default="outputs/.cache"))]
+
+
+DataConfig = make_dataclass("DataConfig", _data_fields())
+DataConfig.__doc__ = "The data section: DatasetSpec's and WindowSettings' fields, and cache_dir."
+
+
+@dataclass
+class RoadConfig:
+    classes: List[str] = field(default_factory=lambda: list("ABCDE"))
+
+
+@dataclass
+class NoiseConfig:
+    # the test noise levels of the final evaluation and the learning curves (hybrid_sysid.training)
+    eval_std: List[float] = field(default_factory=lambda: [0.0, 0.01])
+    train_std: float = 0.0
+
+
+@dataclass
+class OptimConfig:
+    name: str = "adamw"
+    lr: float = 3e-3
+    weight_decay: float = 0.0
+    schedule: str = "onecycle"
+    warmup_fraction: float = 0.3
+
+
+@dataclass
+class ModelConfig:
+    net: Dict[str, Any] = MISSING  # _target_ and the network's own arguments
+    optim: OptimConfig = field(default_factory=OptimConfig)
+    batch_size: int = 64
+
+
+@dataclass
+class TrainerConfig:
+    max_steps: int = 6000
+    eval_every_n_steps: int = 200
+    curve_every_n_steps: Optional[int] = None  # learning-curve points; null: at every validation
+    accelerator: str = "cpu"
+    devices: Any = 1
+    threads: Optional[int] = None
+    deterministic: bool = True
+    monitor: str = "auto"
+    progress_bar: bool = True
+    extra: Dict[str, Any] = field(default_factory=dict)  # passed to lightning.Trainer as is
+
+
+@dataclass
+class EvaluationConfig:
+    # K values: for each K and test noise level, average the predictions on K fixed, seeded windows per
+    # recording (K = 1: one window)
+    windows: List[int] = field(default_factory=lambda: [1])
+
+
+@dataclass
+class TransferConfig:
+    """task=transfer (hybrid_sysid.experiments.transfer): a labelled network on the config's car, then on each
+    scenario's target: evaluated, adapted without labels, the hybrid objective from scratch, a labelled oracle."""
+
+    adapt_steps: int = 600  # hybrid-objective steps from the source network's weights
+    adapt_lr: float = 5e-3
+    scenarios: Dict[str, Any] = field(default_factory=dict)  # name -> {car: a car preset, data: {key: value}}
+
+
+@dataclass
+class TunedConfig:
+    """task=tuned (hybrid_sysid.experiments.tuned): each objective searched with the same budget, then trained with
+    its default and its best values on several seeds."""
+
+    search: str = "fast_cnn"  # the hparams_search preset whose space and sampler the study uses
+    n_trials: int = 12  # per objective; trial 0 is the model's default values
+    trial_seed: int = 1000  # the trials' seed, apart from the seeds the table reports
+    seeds: List[int] = field(default_factory=lambda: [0, 1, 2])
+
+
+@dataclass
+class Config:
+    # what a job does (core.options.TASKS): one run, a transfer chain (transfer:), a tuned comparison (tuned:)
+    task: str = "train"
+    seed: int = 0
+    resume: Optional[str] = None
+    init_from: Optional[str] = None  # a run directory: start from its best weights
+    data: DataConfig = MISSING
+    road: RoadConfig = MISSING
+    noise: NoiseConfig = MISSING
+    model: ModelConfig = MISSING
+    objective: Dict[str, Any] = MISSING  # _target_ and the objective's own arguments
+    # a baseline without a network (conf/baseline, e.g. baseline=ls_bandpass): _target_ and its arguments; when
+    # set, the run evaluates it instead of training model and objective
+    baseline: Optional[Dict[str, Any]] = None
+    trainer: TrainerConfig = MISSING
+    evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
+    # experiment trackers: name -> a Lightning logger's _target_ and arguments (conf/logger; {} for none)
+    logger: Dict[str, Any] = field(default_factory=dict)
+    # the car's constants (QuarterCar's fields; the group conf/car, car=paper by default), e.g. car.c3=700
+    car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
+    transfer: Optional[TransferConfig] = None  # task=transfer's settings
+    tuned: Optional[TunedConfig] = None  # task=tuned's settings
+
+
+@dataclass
+class EvalConfig(Config):
+    """hybrid-sysid-eval's config (conf/eval.yaml): the training config's groups, to compose overrides, and the
+    run to evaluate."""
+
+    run: str = MISSING
+
+
+# the schema's sections, whose keys are fixed (model.net, objective, baseline, car and trainer.extra are free-form)
+SECTIONS = {"": Config, "data": DataConfig, "road": RoadConfig, "noise": NoiseConfig, "model": ModelConfig,
+            "model.optim": OptimConfig, "trainer": TrainerConfig, "evaluation": EvaluationConfig,
+            "transfer": TransferConfig, "tuned": TunedConfig}
+
+
+def flatten(tree: dict, prefix: str = "") -> dict:
+    """A nested dict as {dotted.key: leaf} (an empty dict is a leaf too)."""
+    out = {}
+    for k, v in tree.items():
+        key = f"{prefix}{k}"
+        if isinstance(v, dict) and v:
+            out.update(flatten(v, key + "."))
+        else:
+            out[key] = v
+    return out

@@ -1,0 +1,176 @@
+"""Windows of the recordings: views without copies, sensor noise and its re-integration, the training stream.
+
+``WindowCutter`` turns (recording, start) pairs into batches; ``RandomWindows`` is the endless, resumable stream of
+training batches. The LightningDataModule around them is hybrid_sysid.data.datamodule.
+"""
+
+from __future__ import annotations
+
+from typing import Iterator
+
+import numpy as np
+import torch
+from torch.utils.data import IterableDataset
+
+from hybrid_sysid.data.dataset import SimulatedDataset
+from hybrid_sysid.physics import relative_states
+from hybrid_sysid.physics.filters import fir_valid
+
+
+def _windows(arr: np.ndarray, window: int) -> np.ndarray:
+    """A read-only view of every window of every recording: (recordings, starts, window), no copy."""
+    return np.lib.stride_tricks.sliding_window_view(arr, window, axis=1)
+
+
+def gather(windows: np.ndarray, rows: np.ndarray, starts: np.ndarray) -> torch.Tensor:
+    """windows[rows[i], starts[i]] for every i: arr[rows[i], starts[i]:starts[i] + window], one contiguous copy.
+
+    Indexing the window view copies whole rows; torch's advanced indexing with a (batch, window) column index
+    takes over 10x as long (benchmarks/README.md, "Data pipeline").
+    """
+    return torch.from_numpy(windows[rows, starts])
+
+
+def start_state(starts: np.ndarray, dt: float, normals: np.ndarray) -> np.ndarray:
+    """The relative velocity and displacement that unit-variance white noise on both channels, integrated from
+    t0, has reached at each window start: (B, 2) = (V, X), V = rel_vel before the window's first step, X =
+    rel_disp one step before the window. Exact draws from their joint Gaussian (one pair of standard normals
+    ``normals`` (B, 2) per window), so a batch needs no series-long noise draw.
+
+    With d_j = seat noise - body noise (variance 2), symplectic Euler gives V = dt sum_{j<s} d_j and
+    X = dt^2 sum_{j<s} (s - 1 - j) d_j: Var V = 2 dt^2 s, Var X = 2 dt^4 sum m^2, Cov = 2 dt^3 sum m (m < s).
+    """
+    s = np.asarray(starts, dtype=np.float64)
+    var_v = 2 * dt ** 2 * s
+    cov = 2 * dt ** 3 * s * (s - 1) / 2
+    var_x = 2 * dt ** 4 * (s - 1) * s * (2 * s - 1) / 6
+    a = np.sqrt(var_v)
+    b = np.divide(cov, a, out=np.zeros_like(a), where=a > 0)
+    c = np.sqrt(np.maximum(var_x - b * b, 0.0))
+    return np.stack([a * normals[:, 0], b * normals[:, 0] + c * normals[:, 1]], axis=1)
+
+
+class WindowCutter:
+    """Window views of the dataset arrays plus the window / noise logic shared by training and evaluation.
+
+    integration "t0": the regressors are the states integrated from t0 over the whole recording, noise
+    included: a window's noise adds its own re-integration plus the state the noise before it has reached
+    (``start_state``), so no window starts from a noise-free state, as none does in a real recording.
+    integration "window": each window is integrated from zero on its own, clean part and noise alike (a sensor
+    stream cut anywhere, its states at the cut unknown): the regressors are then off by an unknown constant
+    (rel_vel) and ramp (rel_disp), which a band-pass of zero DC and zero ramp gain removes.
+
+    ``fir`` (symmetric band-pass taps, or None): the batches also carry "seat_f", "rel_vel_f", "rel_disp_f",
+    the three signals of the seat equation through that filter ('valid' part of the window, W - taps + 1
+    samples). The clean part is filtered once per recording in float64 here; the noise part per batch by a
+    torch FFT convolution in float32 (noise alone, without the offsets of the states before the window). Both
+    integrations give the same filtered signals (the filter removes the offsets).
+    """
+
+    def __init__(self, ds: SimulatedDataset, window: int, integration: str = "t0", fir: np.ndarray | None = None):
+        self.dt = ds.spec.dt
+        self.measurement = ds.spec.measurement
+        self.window, self.integration = window, integration
+        self.seat, self.body = _windows(ds.seat_acc, window), _windows(ds.body_acc, window)
+        self.rel_vel, self.rel_disp = _windows(ds.rel_vel, window), _windows(ds.rel_disp, window)
+        self.params = torch.from_numpy(ds.params.astype(np.float32))
+        self.n_steps = ds.seat_acc.shape[1]
+        self.fir = None
+        if fir is not None:
+            fir = np.asarray(fir, dtype=np.float64)
+            # by FFT, about 10x faster than torch's conv1d with 151 taps; a transform as long as the window
+            # suffices, since the circular wrap-around only reaches the taps - 1 edge samples 'valid' drops
+            self.nfft = 1 << int(np.ceil(np.log2(window)))
+            self.fir = torch.fft.rfft(torch.from_numpy(fir.astype(np.float32)), self.nfft)
+            self.taps = len(fir)
+            short = window - len(fir) + 1
+            self.filtered = [_windows(fir_valid(a, fir).astype(np.float32), short)
+                             for a in (ds.seat_acc, ds.rel_vel, ds.rel_disp)]
+
+    def batch(self, rows, starts, noise: np.ndarray | None = None,
+              state: np.ndarray | None = None) -> dict[str, torch.Tensor]:
+        """Windows (rows[i], starts[i]); ``noise`` (B, 2, W) added to both channels; ``state`` (B, 2): the
+        noise's (V, X) at each window's start (``start_state``), used by integration "t0" (None: zero)."""
+        rows, starts = np.asarray(rows, dtype=np.int64), np.asarray(starts, dtype=np.int64)
+        signals = torch.stack([gather(self.seat, rows, starts), gather(self.body, rows, starts)], dim=1)
+        if self.integration == "window":  # clean and noisy alike, from zero at the window's start
+            acc = signals.numpy().astype(np.float64) + (0.0 if noise is None else noise)
+            rel_vel, rel_disp = (torch.from_numpy(v.astype(np.float32))
+                                 for v in relative_states(acc[:, 0], acc[:, 1], self.dt, self.measurement))
+        else:
+            rel_vel, rel_disp = gather(self.rel_vel, rows, starts), gather(self.rel_disp, rows, starts)
+        noise_f = None
+        if noise is not None:
+            nv, nd = relative_states(noise[:, 0], noise[:, 1], self.dt, self.measurement)
+            if self.fir is not None:  # the window's own noise only: the filter removes what came before
+                parts = torch.from_numpy(np.stack([noise[:, 0], nv, nd], axis=1).astype(np.float32))
+                full = torch.fft.irfft(torch.fft.rfft(parts, self.nfft) * self.fir, self.nfft)
+                noise_f = full[..., self.taps - 1:self.window]
+            if self.integration == "t0":
+                if state is not None:  # v_{s+k} = V + local v_k; x_{s+k} = X + (k + 1) dt V + local x_k
+                    nv = nv + state[:, :1]
+                    nd = nd + state[:, 1:] + self.dt * np.arange(1, self.window + 1) * state[:, :1]
+                rel_vel = rel_vel + torch.from_numpy(nv.astype(np.float32))
+                rel_disp = rel_disp + torch.from_numpy(nd.astype(np.float32))
+            signals = signals + torch.from_numpy(noise.astype(np.float32))
+        index = torch.from_numpy(rows)
+        batch = {"signals": signals, "params": self.params[index], "rel_vel": rel_vel, "rel_disp": rel_disp,
+                 "index": index}
+        if self.fir is not None:
+            for i, key in enumerate(("seat_f", "rel_vel_f", "rel_disp_f")):
+                batch[key] = gather(self.filtered[i], rows, starts)
+                if noise_f is not None:
+                    batch[key] = batch[key] + noise_f[:, i]
+        return batch
+
+
+class RandomWindows(IterableDataset):
+    """An endless stream of training batches; trainer.max_steps ends training.
+
+    Pass e visits every training recording once, in random order, each at a fresh random window start, from
+    a generator seeded by (seed, e), so the stream is reproducible and ``resume_at`` can resume it exactly.
+    Whole batches are cut with vectorised indexing. One stream (no epochs) also spares Lightning's per-epoch
+    overhead, which would dominate on small datasets.
+
+    ``rank`` (several devices, DDP) picks the stream: rank 0 draws the one-device stream, rank r > 0 its own,
+    seeded by (seed, e, r), so N ranks see N different batches per step.
+    """
+
+    def __init__(self, data: WindowCutter, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0,
+                 rank: int = 0):
+        self.data, self.rows, self.batch_size = data, rows, batch_size
+        self.seed, self.noise_std, self.start_batch, self.rank = seed, noise_std, 0, rank
+
+    def _key(self, *parts: int) -> list[int]:
+        return [self.seed, *parts] + ([self.rank] if self.rank else [])
+
+    @property
+    def batches_per_pass(self) -> int:
+        return -(-len(self.rows) // self.batch_size)
+
+    def resume_at(self, batch: int) -> None:
+        """Start the next iteration at this batch number, as if the batches before it had been drawn."""
+        self.start_batch = int(batch)
+
+    def passes(self, start_batch: int = 0) -> Iterator[dict[str, torch.Tensor]]:
+        e, skip = divmod(start_batch, self.batches_per_pass)
+        while True:
+            yield from self.one_pass(e, skip)
+            e, skip = e + 1, 0
+
+    def one_pass(self, e: int, skip: int = 0) -> Iterator[dict[str, torch.Tensor]]:
+        rng = np.random.default_rng(self._key(1000 + e))
+        order = rng.permutation(self.rows)
+        starts = rng.integers(0, self.data.n_steps - self.data.window + 1, size=len(order))
+        for b in range(skip, self.batches_per_pass):
+            sl = slice(b * self.batch_size, (b + 1) * self.batch_size)
+            noise = state = None
+            if self.noise_std > 0:  # one generator per batch, so a resumed stream draws the same noise
+                noise_rng = np.random.default_rng(self._key(2000 + e, b))
+                noise = self.noise_std * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
+                state = self.noise_std * start_state(starts[sl], self.data.dt,
+                                                     noise_rng.standard_normal((len(order[sl]), 2)))
+            yield self.data.batch(order[sl], starts[sl], noise, state)
+
+    def __iter__(self) -> Iterator[dict[str, torch.Tensor]]:
+        return self.passes(self.start_batch)

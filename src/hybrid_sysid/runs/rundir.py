@@ -1,0 +1,158 @@
+"""One run directory's layout, known here alone: Hydra's saved config, the checkpoints, the record.
+
+::
+
+    <run>/.hydra/config.yaml      the composed config the run was made with (Hydra writes it before the job)
+    <run>/.hydra/overrides.yaml   its command-line overrides
+    <run>/.hydra/hydra.yaml       Hydra's own settings (the group choices)
+    <run>/checkpoints/best.ckpt   the weights model selection chose; last.ckpt: the newest training state
+    <run>/metrics.json            the record (hybrid_sysid.runs.records), written last
+
+The sub-runs that experiments chain inside one job (experiment=transfer, experiment=tuned) get the same files
+(``write_config``), so every command reads them as runs.
+"""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.config import flatten
+from hybrid_sysid.core.checks import ConfigError, bad
+from hybrid_sysid.core.files import write_yaml_atomic
+from hybrid_sysid.runs.records import (RECORD, CompletedRecordError, completed_record, previous_record, run_record,
+                                       write_record)
+
+log = logging.getLogger("hybrid_sysid")
+CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
+CHECKPOINTS = ("best.ckpt", "last.ckpt")  # the weights a trained run is used with: best, else last
+# keys that cannot change a run's numbers: a resumed run may differ in them
+RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar"}
+
+
+class RunDir:
+    """A run directory: where each of its files lies, and what reading or writing them must respect."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+
+    def __repr__(self) -> str:
+        return f"RunDir({str(self.path)!r})"
+
+    @property
+    def config_file(self) -> Path:
+        return self.path / CONFIG
+
+    @property
+    def overrides_file(self) -> Path:
+        return self.path / OVERRIDES
+
+    @property
+    def hydra_file(self) -> Path:
+        return self.path / HYDRA
+
+    @property
+    def checkpoints(self) -> Path:
+        return self.path / "checkpoints"
+
+    @property
+    def record_file(self) -> Path:
+        return self.path / RECORD
+
+    def saved_config(self, key: str) -> DictConfig:
+        """The composed config the run saved; ConfigError naming ``key`` when it has none."""
+        if not self.config_file.is_file():
+            raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: it has no {CONFIG} (a run directory "
+                              "written by hybrid-sysid)")
+        return OmegaConf.load(self.config_file)
+
+    def write_config(self, cfg: DictConfig, overrides: list[str]) -> None:
+        """config.yaml and overrides.yaml, as Hydra writes them for a job before it starts."""
+        write_yaml_atomic(self.config_file, OmegaConf.to_container(cfg))
+        write_yaml_atomic(self.overrides_file, list(overrides))
+
+    def trained_checkpoint(self, key: str) -> Path:
+        """The weights a trained run is used with: best.ckpt, or last.ckpt when it never validated; ConfigError
+        naming ``key`` otherwise."""
+        for name in CHECKPOINTS:
+            if (self.checkpoints / name).is_file():
+                return self.checkpoints / name
+        raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: it holds no checkpoints/"
+                          f"{' or '.join(CHECKPOINTS)} (a run directory of hybrid-sysid that trained a network)")
+
+    def resume_checkpoint(self) -> Path | None:
+        """The checkpoint to resume from: last.ckpt; best.ckpt when last.ckpt is damaged (both hold the full
+        training state); None (train from the beginning, which gives the same numbers) when best.ckpt is damaged,
+        as the best weights the run would be evaluated with are then lost, or when neither loads. Damaged files are
+        reported and overwritten by the run's next checkpoints, so a damaged file never blocks a run."""
+        ok = {}
+        for name in ("last.ckpt", "best.ckpt"):
+            path = self.checkpoints / name
+            if path.exists():
+                ok[name] = _loadable(path)
+                if not ok[name]:
+                    log.warning("checkpoint %s cannot be loaded (damaged or truncated); not resuming from it", path)
+        if ok.get("best.ckpt", True) is False or (ok and not any(ok.values())):
+            log.warning("training %s from the beginning", self.path)
+            return None
+        if ok.get("last.ckpt"):
+            return self.checkpoints / "last.ckpt"
+        return self.checkpoints / "best.ckpt" if ok.get("best.ckpt") else None
+
+    def check_resume(self, cfg: DictConfig) -> None:
+        """``resume=`` must name a run (its saved config, written before any of its work) of this config: every
+        value but those that cannot change the numbers (RESUME_FREE) the same. ConfigError naming the keys."""
+        if not self.path.is_dir():
+            bad("resume", str(self.path), "no such directory; give the directory of the run to continue")
+        if not self.config_file.is_file():
+            bad("resume", str(self.path), f"the directory holds no run (no {CONFIG})")
+        try:
+            saved = OmegaConf.to_container(OmegaConf.load(self.config_file), resolve=False)
+        except Exception as exc:  # noqa: BLE001 - a damaged file cannot tell; the run's own files still resume
+            log.warning("%s is unreadable (%s); resuming without comparing the configs", self.config_file, exc)
+            return
+        now = flatten(OmegaConf.to_container(cfg, resolve=False))
+        was = flatten(saved if isinstance(saved, dict) else {})
+        differ = [k for k in sorted(set(now) | set(was))
+                  if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")]
+        if differ:
+            shown = "; ".join(f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here"
+                              for k in differ[:3])
+            bad("resume", str(self.path), f"it holds a run of another config ({shown}"
+                f"{'; ...' if len(differ) > 3 else ''}); resume with the run's own values")
+
+    def completed_record(self) -> dict | None:
+        return completed_record(self.path)
+
+    def previous_record(self, overrides) -> dict | None:
+        """The record of a run of these overrides that already completed here (a re-run skips it), else None;
+        ValueError for a completed run of other overrides."""
+        return previous_record(self.path, overrides)
+
+    def write_record(self, record: dict) -> None:
+        write_record(self.path, record)
+
+    def record_end(self, overrides, seed, status: str, error: str) -> dict:
+        """Record a failed or interrupted job, unless the directory holds a completed run (never replaced). A
+        record that cannot be written (a full disk) is reported on one line instead."""
+        if self.completed_record() is None:
+            try:
+                self.path.mkdir(parents=True, exist_ok=True)
+                self.write_record(run_record(status, overrides, seed, error=error))
+            except (OSError, CompletedRecordError) as exc:
+                print(f"error: could not record the {status} job in {self.path}: {type(exc).__name__}: {exc}",
+                      file=sys.stderr)
+        return {"status": status, "error": error}
+
+
+def _loadable(path: Path) -> bool:
+    import torch  # here: a sweep's parent process reads run directories without loading torch
+
+    try:
+        torch.load(path, map_location="cpu", weights_only=True)
+        return True
+    except Exception:  # noqa: BLE001 - truncated, garbage, another format: all mean "cannot resume from it"
+        return False

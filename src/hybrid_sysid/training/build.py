@@ -1,0 +1,99 @@
+"""What a run is built from its config: the data module, the model (network + objective), the Trainer."""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import lightning as L
+import torch
+from hydra.utils import instantiate
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
+from hybrid_sysid.data.spec import DatasetSpec
+from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
+from hybrid_sysid.runs.rundir import RunDir
+
+log = logging.getLogger("hybrid_sysid")
+# the prior of p is derived from the data (${p_prior:...}), not part of the architecture
+PRIOR_KEYS = ("p_min", "p_max", "p_scale")
+
+
+def build_objective(cfg: DictConfig):
+    return instantiate(cfg.objective, _convert_="all")
+
+
+def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
+    """The data module; when the objective reads band-passed signals (its ``fir``), the batches carry them.
+    ``objective``: the run's, else built from the config (none for a baseline)."""
+    if objective is None and cfg.get("baseline") is None:
+        objective = build_objective(cfg)
+    d = cfg.data
+    return QuarterCarDataModule(DatasetSpec.from_config(cfg), cache_dir=d.cache_dir, window=d.window,
+                                batch_size=cfg.model.batch_size, train_fraction=d.train_fraction,
+                                val_fraction=d.val_fraction, train_std=cfg.noise.train_std, seed=cfg.seed,
+                                integration=d.integration, fir=getattr(objective, "fir", None))
+
+
+def build_model(cfg: DictConfig) -> IdentificationModule:
+    """The network and the objective of the config (their prior of p comes from the car and the mass range:
+    ``${p_prior:...}``, hybrid_sysid.config.resolvers) in an IdentificationModule."""
+    net = instantiate(cfg.model.net, _convert_="all")
+    o = cfg.model.optim
+    return IdentificationModule(net, build_objective(cfg), optimizer=o.name, lr=o.lr, weight_decay=o.weight_decay,
+                                schedule=o.schedule, max_steps=cfg.trainer.max_steps,
+                                warmup_fraction=o.warmup_fraction)
+
+
+def build_baseline(cfg: DictConfig):
+    """The baseline of ``baseline=`` (a model.base.SplitPredictor without a network)."""
+    return instantiate(cfg.baseline, _convert_="all")
+
+
+def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **overrides) -> L.Trainer:
+    """The run's lightning.Trainer (benchmarks/training_throughput.py times this same one). ``loggers``: the
+    experiment trackers (hybrid_sysid.training.tracking); none by default. trainer.extra and then ``overrides``
+    may replace any argument."""
+    t = cfg.trainer
+    callbacks = list(callbacks)
+    if t.progress_bar:
+        # Lightning redraws the bar every step by default; every 10th step reads as well and costs less
+        callbacks.append(L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10))
+    kwargs = dict(
+        max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
+        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=list(loggers) or False,
+        callbacks=callbacks, enable_progress_bar=t.progress_bar, enable_model_summary=False,
+        num_sanity_val_steps=0, default_root_dir=str(run_dir),
+        log_every_n_steps=LOG_EVERY)  # the steps on which the module logs its training loss
+    kwargs.update(t.get("extra", {}))
+    kwargs.update(overrides)
+    return L.Trainer(**kwargs)
+
+
+def monitor_of(cfg: DictConfig, objective) -> str:
+    """'auto' selects by the training objective on validation windows when it reads no labels (hybrid), so a
+    label-free run stays label-free; by the labelled relative deviation otherwise."""
+    m = cfg.trainer.monitor
+    if m == "auto":
+        return "val/rel_dev" if getattr(objective, "uses_labels", True) else "val/loss"
+    return m
+
+
+def load_network(model: IdentificationModule, cfg: DictConfig, run_dir: Path, key: str) -> Path:
+    """Put the trained weights of the run in ``run_dir`` into ``model.net``; the whole network state comes with
+    them (batch-norm statistics, and the output bounds the source run was trained with). A network of another
+    architecture (class or any argument besides the prior of p) is a ConfigError naming ``key``."""
+    run = RunDir(run_dir)
+    source = run.saved_config(key)
+    mine = {k: v for k, v in OmegaConf.to_container(cfg.model.net).items() if k not in PRIOR_KEYS}
+    theirs = {k: v for k, v in OmegaConf.to_container(source.model.net).items() if k not in PRIOR_KEYS}
+    if mine != theirs:
+        diff = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
+        raise ConfigError(f"{key} = {str(run_dir)!r} is not allowed: its network differs from model.net in "
+                          + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff))
+    path = run.trained_checkpoint(key)
+    state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
+    model.net.load_state_dict({k[len("net."):]: v for k, v in state.items() if k.startswith("net.")})
+    return path
