@@ -1,6 +1,8 @@
 """experiment=transfer's table: nested sub-runs found, rows (scenario, row), marks within a scenario, bar figure."""
 
-from evaluation_fakes import known_results, make_run
+import numpy as np
+from evaluation_fakes import PARAMS, known_results, make_run
+from matplotlib.container import BarContainer
 
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.summary import write_summary
@@ -8,12 +10,14 @@ from hybrid_sysid.report.tables import compare_marks, summary_table
 from hybrid_sysid.report.sweep_figures import transfer_figure
 
 ROWS = ["1 labelled, paper's car", "2 + hybrid adaptation"]
+VALUES = {"seat_shift": (0.19, 0.02), "body_shift": (0.015, 0.011)}  # per row; seed s adds 0.001 * s
+SEEDS = (0, 1)
 
 
 def make_transfer_sweep(root):
-    # one job directory per seed, the sub-runs nested in it as hybrid_sysid.transfer lays them out
-    for seed in (0, 1):
-        for scenario, values in (("seat_shift", (0.19, 0.02)), ("body_shift", (0.015, 0.011))):
+    # one job directory per seed, the sub-runs nested in it as hybrid_sysid.experiments.transfer lays them out
+    for seed in SEEDS:
+        for scenario, values in VALUES.items():
             for row, value in zip(ROWS, values):
                 name = "source" if row.startswith("1") else "adapted"
                 make_run(root / str(seed) / scenario / name,
@@ -33,7 +37,27 @@ def test_rows_are_scenario_and_row_compared_within_a_scenario(tmp_path):
     assert marks.loc[("body_shift", ROWS[1]), (0.0, "p1")] == "best"  # its own group, not the seat's
 
 
-def test_the_bar_figure_is_drawn(tmp_path):
+def test_the_bar_figure_is_drawn(tmp_path, drawn):
     _, table = write_summary(make_transfer_sweep(tmp_path / "sweep"), figures=False)
     transfer_figure(table, tmp_path / "bars.png")
     assert (tmp_path / "bars.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # what a reader sees: a panel per scenario, a group of bars per row, a bar per parameter in percent
+    fig = drawn["bars"]
+    assert "noise std 0" in fig.get_suptitle() and "K = 1" in fig.get_suptitle()
+    assert sorted(ax.get_title() for ax in fig.axes) == sorted(VALUES)
+    assert "relative deviation" in fig.axes[0].get_ylabel() and "%" in fig.axes[0].get_ylabel()
+    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == PARAMS
+    for ax in fig.axes:
+        assert [t.get_text() for t in ax.get_xticklabels()] == ROWS  # the groups named by their row
+        per_param = [c for c in ax.containers if isinstance(c, BarContainer)]
+        assert len(per_param) == len(PARAMS) and all(len(c) == len(ROWS) for c in per_param)
+        # percent, the mean and the sample std (ddof=1) over seeds, computed here from the values written
+        runs = 100 * (np.array(VALUES[ax.get_title()])[:, None] + 0.001 * np.array(SEEDS)[None, :])
+        for bars in per_param:
+            np.testing.assert_allclose([b.get_height() for b in bars], runs.mean(axis=1), rtol=1e-9)
+            segments = bars.errorbar.lines[2][0].get_segments()
+            np.testing.assert_allclose([(s[1, 1] - s[0, 1]) / 2 for s in segments], runs.std(axis=1, ddof=1),
+                                       rtol=1e-6)
+        # p1 left of p2 in each row's group
+        centres = [[b.get_x() + b.get_width() / 2 for b in bars] for bars in per_param]
+        assert all(a < b < a + 1 for a, b in zip(*centres))
