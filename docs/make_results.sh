@@ -1,6 +1,9 @@
 #!/usr/bin/env bash
 # Re-run every sweep behind docs/results.md (about two and a half hours on two CPU cores), then regenerate the page.
 # With the sweeps already on disk, only the last command is needed.
+# docs/figures/main_job.png, the README's figure, is not written here: it is figures/robustness.png of a run of the
+# README's first command (hybrid-sysid experiment=robustness), kept with that run's table in docs/results_notes.md
+# ("The main job (README)").
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=outputs/multirun

@@ -21,10 +21,12 @@ def _fmt(v) -> str:
 
 def _describe(cfg: dict, choices: dict) -> dict[str, str | None]:
     g = lambda k: config_value(cfg, k)  # noqa: E731
-    target = str(g("model.net._target_") or "").rsplit(".", 1)[-1]
-    choice = choices.get("model")
+    # a baseline (baseline=) runs instead of the model, whose group keeps its default
+    group = "baseline" if g("baseline._target_") else "model"
+    target = str(g("baseline._target_" if group == "baseline" else "model.net._target_") or "").rsplit(".", 1)[-1]
+    choice = choices.get(group)
     d = {"model": f"{choice} ({target})" if choice and target else choice or target or None}
-    if g("model.optim.name") is not None:
+    if group == "model" and g("model.optim.name") is not None:
         d["optimiser"] = f"{g('model.optim.name')}, lr {_fmt(g('model.optim.lr'))}, {g('model.optim.schedule')} " \
                          f"schedule, batch {g('model.batch_size')}"
     if g("data.n_roads") is not None:
