@@ -27,8 +27,10 @@ from hybrid_sysid.training.build import build_datamodule
 
 
 def per_sample_loop(arrays, rows, starts, window):
-    return [torch.stack([torch.from_numpy(a[r, s:s + window]) for r, s in zip(rows.tolist(), starts.tolist())])
-            for a in arrays]
+    return [
+        torch.stack([torch.from_numpy(a[r, s : s + window]) for r, s in zip(rows.tolist(), starts.tolist())])
+        for a in arrays
+    ]
 
 
 def torch_advanced_index(tensors, rows, starts, window):
@@ -68,14 +70,18 @@ def main():
     rows = rng.choice(dm.rows("train"), size=batch)
     starts = rng.integers(0, ds.seat_acc.shape[1] - window + 1, size=batch)
 
-    ways = {"per-sample Python loop": lambda: per_sample_loop(arrays, rows, starts, window),
-            "torch advanced indexing": lambda: torch_advanced_index(tensors, rows, starts, window),
-            "project: window views": lambda: project(views, rows, starts, window)}
+    ways = {
+        "per-sample Python loop": lambda: per_sample_loop(arrays, rows, starts, window),
+        "torch advanced indexing": lambda: torch_advanced_index(tensors, rows, starts, window),
+        "project: window views": lambda: project(views, rows, starts, window),
+    }
     want = ways["per-sample Python loop"]()
     for name, fn in ways.items():
         assert all(torch.equal(g, w) for g, w in zip(fn(), want)), f"{name} cuts different windows"
-    print(f"dataset {ds.seat_acc.shape[0]} recordings x {ds.seat_acc.shape[1]} steps; batch {batch}, window {window}, "
-          f"4 channels; median of {args.batches} batches, torch threads {torch.get_num_threads()}")
+    print(
+        f"dataset {ds.seat_acc.shape[0]} recordings x {ds.seat_acc.shape[1]} steps; batch {batch}, window {window}, "
+        f"4 channels; median of {args.batches} batches, torch threads {torch.get_num_threads()}"
+    )
     print("| cropping one batch (4 channels) | median | vs per-sample loop |")
     print("| --- | ---: | ---: |")
     loop_us = None
@@ -89,8 +95,9 @@ def main():
     us = median_us(lambda: next(it), args.batches)
     print(f"whole training batch from the loader (draw, crop, dict): {us:.0f} us")
     shared = all(np.shares_memory(v, a) for v, a in zip(views, arrays))
-    print(f"window views share the dataset's memory: {shared}; train loader workers: "
-          f"{dm.train_dataloader().num_workers}")
+    print(
+        f"window views share the dataset's memory: {shared}; train loader workers: {dm.train_dataloader().num_workers}"
+    )
 
 
 if __name__ == "__main__":

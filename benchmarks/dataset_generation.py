@@ -57,8 +57,15 @@ def fast(spec, classes, masses, rng_seed, dtype=np.float32):
     t_roads = time.perf_counter() - t0
     n = spec.n_roads * spec.n_masses
     out = tuple(np.empty((n, spec.n_steps), dtype=dtype) for _ in range(4))
-    simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(),
-                        spec.dt, QuarterCar(), spec.measurement, out=out)
+    simulate_recordings(
+        roads,
+        np.repeat(np.arange(spec.n_roads), spec.n_masses),
+        masses.ravel(),
+        spec.dt,
+        QuarterCar(),
+        spec.measurement,
+        out=out,
+    )
     return out, t_roads, time.perf_counter() - t0
 
 
@@ -90,8 +97,15 @@ def rel_diff(a, b) -> float:
 
 def kernel64(spec, roads, masses):
     out = tuple(np.empty((spec.n_roads * spec.n_masses, spec.n_steps)) for _ in range(4))
-    simulate_recordings(roads, np.repeat(np.arange(spec.n_roads), spec.n_masses), masses.ravel(), spec.dt,
-                        QuarterCar(), spec.measurement, out=out)
+    simulate_recordings(
+        roads,
+        np.repeat(np.arange(spec.n_roads), spec.n_masses),
+        masses.ravel(),
+        spec.dt,
+        QuarterCar(),
+        spec.measurement,
+        out=out,
+    )
     return out
 
 
@@ -99,11 +113,15 @@ def scaling(out_png):
     """Fast-path time against recordings (6000 steps) and against steps (10,000 recordings), best of 3, with a
     least-squares line a + b x through each: linear growth plus a fixed cost (the roads' shared sine basis)."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
-    panels = [("recordings (6000 steps)", [(r, 100, 6000) for r in (10, 25, 50, 100)], lambda r, m, n: r * m),
-              ("steps (10,000 recordings)", [(100, 100, n) for n in (1500, 3000, 6000, 12000)], lambda r, m, n: n)]
+    panels = [
+        ("recordings (6000 steps)", [(r, 100, 6000) for r in (10, 25, 50, 100)], lambda r, m, n: r * m),
+        ("steps (10,000 recordings)", [(100, 100, n) for n in (1500, 3000, 6000, 12000)], lambda r, m, n: n),
+    ]
     for ax, (label, sizes, x_of) in zip(axes, panels):
         xs, ts = [], []
         for r, m, n in sizes:
@@ -151,7 +169,9 @@ def main():
 
     if args.peak_only:  # run in a fresh process: the project's generate_dataset alone
         import resource
+
         from hybrid_sysid.data import generate_dataset
+
         t0 = time.perf_counter()
         simulate_recordings(np.zeros((1, 8)), [0], [60.0], spec.dt)  # compile the kernel
         t1 = time.perf_counter()
@@ -164,10 +184,12 @@ def main():
     # First, while this process is small: a forked child's peak RSS starts from the parent's resident size
     # (fork copies the address space before exec), which after the reference run is several GiB.
     size = ["--roads", str(args.roads), "--masses", str(args.masses), "--steps", str(args.steps), "--dt", str(args.dt)]
-    peak = subprocess.run([sys.executable, __file__, "--peak-only", *size],
-                          capture_output=True, text=True, check=True).stdout.split()
-    alloc = subprocess.run([sys.executable, __file__, "--alloc-only", *size],
-                           capture_output=True, text=True, check=True).stdout.split()
+    peak = subprocess.run(
+        [sys.executable, __file__, "--peak-only", *size], capture_output=True, text=True, check=True
+    ).stdout.split()
+    alloc = subprocess.run(
+        [sys.executable, __file__, "--alloc-only", *size], capture_output=True, text=True, check=True
+    ).stdout.split()
     rng = np.random.default_rng(0)
     classes = list(rng.choice(list("ABCDE"), size=spec.n_roads))
     masses = rng.integers(50, 201, size=(spec.n_roads, spec.n_masses)).astype(float)
@@ -200,18 +222,25 @@ def main():
     floor = [rel_diff(a, b) for a, b in zip(kernel64(spec, ulp, masses), base)]
     del base
 
-    print(f"dataset {spec.n_roads} roads x {spec.n_masses} masses x {spec.n_steps} steps, dt {spec.dt} s; "
-          f"project: median of {len(warm)} warm runs ({' / '.join(f'{t:.3f}' for t, _ in warm)} s)")
+    print(
+        f"dataset {spec.n_roads} roads x {spec.n_masses} masses x {spec.n_steps} steps, dt {spec.dt} s; "
+        f"project: median of {len(warm)} warm runs ({' / '.join(f'{t:.3f}' for t, _ in warm)} s)"
+    )
     print("| stage | reference (numpy) | project | speed-up |")
     print("| --- | ---: | ---: | ---: |")
     print(f"| roads | {ref_roads:.3f} s | {fast_roads:.3f} s | {ref_roads / fast_roads:.0f}x |")
-    print(f"| simulation + re-integration | {ref_total - ref_roads:.3f} s | {fast_total - fast_roads:.3f} s | "
-          f"{(ref_total - ref_roads) / (fast_total - fast_roads):.0f}x |")
+    print(
+        f"| simulation + re-integration | {ref_total - ref_roads:.3f} s | {fast_total - fast_roads:.3f} s | "
+        f"{(ref_total - ref_roads) / (fast_total - fast_roads):.0f}x |"
+    )
     print(f"| total | {ref_total:.3f} s | {fast_total:.3f} s | {ref_total / fast_total:.0f}x |")
-    print(f"| total, project's first run in this process (cold) | | {cold_total:.3f} s | "
-          f"{ref_total / cold_total:.0f}x |")
-    print(f"OS floor, fresh process, four float32 arrays of the dataset's size allocated + filled in parallel: "
-          f"first {float(alloc[0]):.3f} s, second {float(alloc[1]):.3f} s, third {float(alloc[2]):.3f} s")
+    print(
+        f"| total, project's first run in this process (cold) | | {cold_total:.3f} s | {ref_total / cold_total:.0f}x |"
+    )
+    print(
+        f"OS floor, fresh process, four float32 arrays of the dataset's size allocated + filled in parallel: "
+        f"first {float(alloc[0]):.3f} s, second {float(alloc[1]):.3f} s, third {float(alloc[2]):.3f} s"
+    )
     names = ("seat acc", "body acc", "rel. velocity", "rel. displacement")
     print("float64 max |project - reference| / max |reference|, per channel:")
     print("| channel | end to end | same roads (kernel vs numpy loop) | 1-ulp road perturbation (floor) |")
@@ -219,8 +248,10 @@ def main():
     for n, a, b, c in zip(names, worst, same_road, floor):
         print(f"| {n} | {a:.1e} | {b:.1e} | {c:.1e} |")
     print(f"roads, dense sin vs sine basis: {road_diff:.1e}")
-    print(f"generate_dataset in a fresh process: {float(peak[0]):.3f} s, of which {float(peak[3]):.3f} s compiling "
-          f"the kernel; dataset {float(peak[1]):.3f} GiB, peak RSS {float(peak[2]):.3f} GiB")
+    print(
+        f"generate_dataset in a fresh process: {float(peak[0]):.3f} s, of which {float(peak[3]):.3f} s compiling "
+        f"the kernel; dataset {float(peak[1]):.3f} GiB, peak RSS {float(peak[2]):.3f} GiB"
+    )
     if args.scaling:
         png = Path(__file__).parent / "dataset_generation_scaling.png"
         scaling(png)

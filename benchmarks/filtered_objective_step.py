@@ -38,6 +38,7 @@ def stepper(objective, train_std, overrides):
         opt.zero_grad()
         loss.backward()
         opt.step()
+
     return step
 
 
@@ -60,8 +61,10 @@ def main():
     for o in OBJECTIVES:
         t = np.array(times[o])
         r = t / base
-        print(f"{o:16s} median step {1000 * np.median(t):6.2f} ms   per-step ratio to hybrid: median "
-              f"{np.median(r):.3f} (interquartile {np.quantile(r, 0.25):.3f}-{np.quantile(r, 0.75):.3f})")
+        print(
+            f"{o:16s} median step {1000 * np.median(t):6.2f} ms   per-step ratio to hybrid: median "
+            f"{np.median(r):.3f} (interquartile {np.quantile(r, 0.25):.3f}-{np.quantile(r, 0.75):.3f})"
+        )
 
 
 if __name__ == "__main__":

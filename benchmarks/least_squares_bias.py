@@ -9,16 +9,23 @@ Reference: numpy's lstsq in float64.
 
 import numpy as np
 
-from hybrid_sysid.physics import (QuarterCar, continuous_recordings, relative_states, road_amplitudes, road_phases,
-                                  road_profiles, simulate, wave_numbers)
+from hybrid_sysid.physics import (
+    QuarterCar,
+    continuous_recordings,
+    relative_states,
+    road_amplitudes,
+    road_phases,
+    road_profiles,
+    simulate,
+    wave_numbers,
+)
 
 CAR = QuarterCar()
 SCHEMES = {  # name: (recording, pairing of velocities in the seat equation)
     "paper (eq. 12 recording, eq. 22 pairing)": ("paper", "paper"),
     "consistent recording, eq. 22 pairing z'_k - y'_k": ("consistent", "paper"),
     "consistent (recording + pairing z'_k - y'_{k+1})": ("consistent", "consistent"),
-    "continuous recording (exact samples), symplectic Euler + pairing z'_k - y'_{k+1}": ("continuous",
-                                                                                        "consistent"),
+    "continuous recording (exact samples), symplectic Euler + pairing z'_k - y'_{k+1}": ("continuous", "consistent"),
     "continuous recording, trapezoid rule (data.measurement=continuous)": ("continuous", "continuous"),
 }
 
@@ -29,8 +36,15 @@ def worst_error(recording, pairing, road_class, dt):
     masses = np.array([[50.0, 100.0, 150.0, 200.0]] * 2)
     if recording == "continuous":  # the same roads' phases, solved exactly between samples
         phases = road_phases(2, 300, np.random.default_rng("ABCDE".index(road_class)))
-        seat, body = continuous_recordings(road_amplitudes([road_class] * 2), phases, wave_numbers(300) * 15.0,
-                                           np.repeat([0, 1], 4), masses.ravel(), n, dt)
+        seat, body = continuous_recordings(
+            road_amplitudes([road_class] * 2),
+            phases,
+            wave_numbers(300) * 15.0,
+            np.repeat([0, 1], 4),
+            masses.ravel(),
+            n,
+            dt,
+        )
         seat, body = seat.reshape(2, 4, n), body.reshape(2, 4, n)
     else:
         seat, body = simulate(road[:, None, :], masses, dt, measurement=recording)

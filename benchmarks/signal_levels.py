@@ -29,7 +29,7 @@ def main():
             road = road_profiles([cls] * args.roads, n_steps, dt, speed, 300, amplitude, rng)
             masses = rng.integers(50, 201, size=args.roads).astype(float)
             seat, body = simulate(road, masses, dt, measurement="consistent")
-            s, b = np.sqrt(np.mean(seat ** 2)), np.sqrt(np.mean(body ** 2))
+            s, b = np.sqrt(np.mean(seat**2)), np.sqrt(np.mean(body**2))
             print(f"| {amplitude} | {cls} | {s:.3g} | {b:.3g} | {s / args.noise:.3g} |")
 
 

@@ -31,14 +31,20 @@ def first_crossing(curves: pd.DataFrame):
 def plot(wide: pd.DataFrame, png: Path, title: str) -> None:
     """Clean-test error against training wall time, with the paper's labelled figures as dashed lines."""
     import matplotlib
+
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+
     fig, ax = plt.subplots(figsize=(6, 4))
     for (param, target), color in zip(PAPER.items(), ("C0", "C1")):
         ax.plot(wide.seconds, wide[param] * 100, "o-", ms=3, color=color, label=f"{param} (test, clean)")
         ax.axhline(target * 100, ls="--", color=color, lw=1, label=f"paper, labelled: {param} {target:.1%}")
-    ax.set(xlabel="training wall time [s] (evaluations excluded)", ylabel="mean relative deviation [%]",
-           yscale="log", title=f"time to accuracy: {title}")
+    ax.set(
+        xlabel="training wall time [s] (evaluations excluded)",
+        ylabel="mean relative deviation [%]",
+        yscale="log",
+        title=f"time to accuracy: {title}",
+    )
     ax.grid(alpha=0.3, which="both")
     ax.legend(fontsize=8)
     fig.tight_layout()
@@ -64,19 +70,24 @@ def main(overrides):
     print(f"overrides: {' '.join(overrides)}")
     print(f"training: {record['steps']} steps, {record['train_seconds']:.1f} s (evaluations excluded)")
     if hit is not None:
-        print(f"reached the paper's labelled figures (p1 <= 6.0%, p2 <= 4.2%) at step {int(hit.step)}, "
-              f"{hit.seconds:.1f} s: p1 {hit.p1:.2%}, p2 {hit.p2:.2%}")
+        print(
+            f"reached the paper's labelled figures (p1 <= 6.0%, p2 <= 4.2%) at step {int(hit.step)}, "
+            f"{hit.seconds:.1f} s: p1 {hit.p1:.2%}, p2 {hit.p2:.2%}"
+        )
         below = (wide.p1 <= PAPER["p1"]) & (wide.p2 <= PAPER["p2"])
         above = (~below).to_numpy().nonzero()[0]
         if len(above) == 0 or above[-1] + 1 < len(wide):  # from here on every point stays below
             stay = wide.iloc[0 if len(above) == 0 else above[-1] + 1]
-            print(f"stays below them from step {int(stay.step)}, {stay.seconds:.1f} s on "
-                  "(the curve is noisy while the learning rate is high)")
+            print(
+                f"stays below them from step {int(stay.step)}, {stay.seconds:.1f} s on "
+                "(the curve is noisy while the learning rate is high)"
+            )
     else:
         best = wide.iloc[(wide.p1 + wide.p2).argmin()]
         print(f"did not reach the paper's figures; best p1 {best.p1:.2%}, p2 {best.p2:.2%} at step {int(best.step)}")
-    final = {(r["parameter"]): r["mean_rel_dev"] for r in record["results"]
-             if r["split"] == "test" and r["noise_std"] == 0.0}
+    final = {
+        (r["parameter"]): r["mean_rel_dev"] for r in record["results"] if r["split"] == "test" and r["noise_std"] == 0.0
+    }
     print(f"final (best checkpoint) clean test: p1 {final['p1']:.2%}, p2 {final['p2']:.2%}")
 
 

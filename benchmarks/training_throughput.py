@@ -29,10 +29,10 @@ import torch
 from hydra import compose, initialize_config_dir
 from hydra.utils import instantiate
 
-from hybrid_sysid.training.callbacks import TrainingClock
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.model.module import IdentificationModule
 from hybrid_sysid.training.build import build_datamodule, build_model, build_trainer
+from hybrid_sysid.training.callbacks import TrainingClock
 
 
 class TinyNet(torch.nn.Module):
@@ -45,8 +45,7 @@ class TinyNet(torch.nn.Module):
 
 
 def tiny_model(cfg):
-    return IdentificationModule(TinyNet(), instantiate(cfg.objective, _convert_="all"),
-                              max_steps=cfg.trainer.max_steps)
+    return IdentificationModule(TinyNet(), instantiate(cfg.objective, _convert_="all"), max_steps=cfg.trainer.max_steps)
 
 
 MAKE_MODEL = [build_model]  # or tiny_model with --tiny
@@ -128,6 +127,7 @@ def plain_stepper(cfg, dm):
         opt.step()
         if sched is not None:
             sched.step()
+
     return step
 
 
@@ -137,12 +137,18 @@ def interleaved(cfg, dm, steps):
     L.seed_everything(cfg.seed)
     model = MAKE_MODEL[0](cfg)
     with tempfile.TemporaryDirectory() as tmp:
-        trainer = build_trainer(cfg, tmp, [TrainingClock(), callback], max_steps=steps + callback.warmup,
-                                limit_val_batches=0, enable_checkpointing=False)
+        trainer = build_trainer(
+            cfg,
+            tmp,
+            [TrainingClock(), callback],
+            max_steps=steps + callback.warmup,
+            limit_val_batches=0,
+            enable_checkpointing=False,
+        )
         trainer.fit(model, datamodule=dm)
     plain = np.array(callback.plain)
     # from one batch start to the next, less the plain step our callback ran in between
-    project = np.diff(callback.starts)[:len(plain)] - plain
+    project = np.diff(callback.starts)[: len(plain)] - plain
     return plain, project
 
 
@@ -151,16 +157,26 @@ def trainer_path(cfg, dm, steps):
     model = MAKE_MODEL[0](cfg)
     timer = StepTimer()
     with tempfile.TemporaryDirectory() as tmp:  # the run's own Trainer, minus validation and checkpoints
-        trainer = build_trainer(cfg, tmp, [TrainingClock(), timer], max_steps=steps + timer.warmup,
-                                limit_val_batches=0, enable_checkpointing=False)
+        trainer = build_trainer(
+            cfg,
+            tmp,
+            [TrainingClock(), timer],
+            max_steps=steps + timer.warmup,
+            limit_val_batches=0,
+            enable_checkpointing=False,
+        )
         trainer.fit(model, datamodule=dm)
     return np.diff(timer.stamps)
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--steps", type=int, default=None,
-                    help="timed steps: per run (default 600 interleaved, 60 a round with --rounds)")
+    ap.add_argument(
+        "--steps",
+        type=int,
+        default=None,
+        help="timed steps: per run (default 600 interleaved, 60 a round with --rounds)",
+    )
     ap.add_argument("--rounds", type=int, default=0, help="time back-to-back rounds instead of interleaving")
     ap.add_argument("--tiny", action="store_true", help="a 2 -> 2 linear network: the framework's fixed cost")
     ap.add_argument("overrides", nargs="*")
@@ -174,8 +190,10 @@ def main():
     net = "TinyNet (--tiny)" if args.tiny else cfg.model.net._target_
     if not args.rounds:
         args.steps = args.steps or 600
-        print(f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
-              f"window {cfg.data.window}, {args.steps} interleaved pairs of steps")
+        print(
+            f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
+            f"window {cfg.data.window}, {args.steps} interleaved pairs of steps"
+        )
         plain_loop(cfg, dm, 20)  # warm-up of caches and the CPU
         torch.use_deterministic_algorithms(bool(cfg.trainer.deterministic))  # as the Trainer will
         plain, project = interleaved(cfg, dm, args.steps)
@@ -184,12 +202,16 @@ def main():
         print(f"plain loop: median step {pm * 1e3:.2f} ms = {1 / pm:.2f} steps/s")
         print(f"project Trainer path: median step {jm * 1e3:.2f} ms = {1 / jm:.2f} steps/s")
         q1, q2, q3 = np.percentile(plain / project, [25, 50, 75])
-        print(f"ratio project / plain (steps per second): {pm / jm:.3f} (ratio of medians); per pair: median "
-              f"{q2:.3f} (interquartile {q1:.3f} to {q3:.3f}); difference of medians {(jm - pm) * 1e3:.2f} ms")
+        print(
+            f"ratio project / plain (steps per second): {pm / jm:.3f} (ratio of medians); per pair: median "
+            f"{q2:.3f} (interquartile {q1:.3f} to {q3:.3f}); difference of medians {(jm - pm) * 1e3:.2f} ms"
+        )
         return
     args.steps = args.steps or 60
-    print(f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
-          f"window {cfg.data.window}, {args.steps} timed steps x {args.rounds} rounds per path")
+    print(
+        f"torch threads: {torch.get_num_threads()}; model {net}, batch {cfg.model.batch_size}, "
+        f"window {cfg.data.window}, {args.steps} timed steps x {args.rounds} rounds per path"
+    )
     # This machine's speed drifts by up to +-15% within a minute, so pooled timings of long runs compare
     # whatever state each run happened to meet. Instead: many short runs, the two paths back to back in
     # alternating order, a ratio per round (median step of each), and the median of those ratios.
@@ -199,21 +221,26 @@ def main():
     for r in range(-1, args.rounds):  # round -1 warms caches and the CPU and is dropped
         order = [(names[0], plain_loop), (names[1], trainer_path)]
         med = {}
-        for name, fn in (order if r % 2 == 0 else order[::-1]):
+        for name, fn in order if r % 2 == 0 else order[::-1]:
             dts = fn(cfg, dm, args.steps)
             med[name] = float(np.median(dts))
             if r >= 0:
                 steps_s[name].append(dts)
         if r >= 0:
             ratios.append(med[names[0]] / med[names[1]])
-            print(f"round {r}: plain {1 / med[names[0]]:.1f} steps/s, project {1 / med[names[1]]:.1f} steps/s, "
-                  f"ratio {ratios[-1]:.3f}", flush=True)
+            print(
+                f"round {r}: plain {1 / med[names[0]]:.1f} steps/s, project {1 / med[names[1]]:.1f} steps/s, "
+                f"ratio {ratios[-1]:.3f}",
+                flush=True,
+            )
     for name in names:
         v = float(np.median(np.concatenate(steps_s[name])))
         print(f"{name}: median step {v * 1e3:.2f} ms = {1 / v:.2f} steps/s (pooled over rounds)")
     q1, q2, q3 = np.percentile(ratios, [25, 50, 75])
-    print(f"ratio project / plain (steps per second): median of {len(ratios)} paired rounds {q2:.3f} "
-          f"(interquartile {q1:.3f} to {q3:.3f})")
+    print(
+        f"ratio project / plain (steps per second): median of {len(ratios)} paired rounds {q2:.3f} "
+        f"(interquartile {q1:.3f} to {q3:.3f})"
+    )
 
 
 if __name__ == "__main__":

@@ -16,8 +16,11 @@ BAD = [
     (["data.dt=0"], r"data.dt = 0.0 is not allowed: must be > 0"),
     (["data.dt=0.05"], r"data.dt = 0.05 is not allowed: the semi-implicit Euler scheme is unstable above 0.036"),
     (["data.speed=-2"], r"data.speed = -2.0 is not allowed: must be > 0"),
-    (["trainer.curve_every_n_steps=250"], r"trainer.curve_every_n_steps = 250 is not allowed: a multiple of "
-                                          r"trainer.eval_every_n_steps = 200"),
+    (
+        ["trainer.curve_every_n_steps=250"],
+        r"trainer.curve_every_n_steps = 250 is not allowed: a multiple of "
+        r"trainer.eval_every_n_steps = 200",
+    ),
     (["data.n_roads=2"], r"data.n_roads = 2 is too few for data.train_fraction = 0.8"),
     (["data.train_fraction=1.0"], r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
     (["data.train_fraction=0"], r"data.train_fraction = 0.0 is not allowed: must lie in \(0, 1\)"),
@@ -29,22 +32,35 @@ BAD = [
     (["model.batch_size=0"], r"model.batch_size = 0 is not allowed: must be >= 1"),
     (["model.optim.lr=0"], r"model.optim.lr = 0.0 is not allowed: must be > 0"),
     (["model.optim.lr=-0.1"], r"model.optim.lr = -0.1 is not allowed: must be > 0"),
-    (["objective=combined", "objective.labelled_weight=0", "objective.hybrid_weight=0"],
-     r"objective.labelled_weight / objective.hybrid_weight = \[0, 0\] is not allowed: .*not both be zero"),
+    (
+        ["objective=combined", "objective.labelled_weight=0", "objective.hybrid_weight=0"],
+        r"objective.labelled_weight / objective.hybrid_weight = \[0, 0\] is not allowed: .*not both be zero",
+    ),
     (["trainer.max_steps=0"], r"trainer.max_steps = 0 is not allowed: must be >= 1"),
     (["data.integration=series"], r"data.integration = 'series' is not allowed: one of t0, window"),
-    (["objective=hybrid_bandpass", "objective.filter.high_hz=150"],
-     r"objective.filter.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)"),
-    (["objective=hybrid_bandpass", "data.window=150"],
-     r"objective.filter.taps = 151 is not allowed: must be <= data.window - 9 = 141"),
-    (["objective=hybrid", "objective.weighting=eiv"],
-     r"objective.weighting = 'eiv' is not allowed without objective.filter"),
+    (
+        ["objective=hybrid_bandpass", "objective.filter.high_hz=150"],
+        r"objective.filter.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)",
+    ),
+    (
+        ["objective=hybrid_bandpass", "data.window=150"],
+        r"objective.filter.taps = 151 is not allowed: must be <= data.window - 9 = 141",
+    ),
+    (
+        ["objective=hybrid", "objective.weighting=eiv"],
+        r"objective.weighting = 'eiv' is not allowed without objective.filter",
+    ),
     (["objective=hybrid", "objective.weighting=tls"], r"objective.weighting = 'tls' is not allowed: one of none, eiv"),
     (["baseline=ls_bandpass_m3", "baseline.unknown=k3"], r"baseline.unknown = 'k3' is not allowed: one of p, m3"),
-    (["baseline=ls_bandpass_m3", "data.seat_spread=0.3"],
-     r"baseline.unknown = 'm3' is not allowed: needs the car's C3 and K3 on every recording"),
-    (["evaluation.windows=[1,0]"], r"evaluation.windows = \[1, 0\] is not allowed: a non-empty list of integers K in "
-                                   r"\[1, data.n_steps - data.window \+ 1 = 701\]"),
+    (
+        ["baseline=ls_bandpass_m3", "data.seat_spread=0.3"],
+        r"baseline.unknown = 'm3' is not allowed: needs the car's C3 and K3 on every recording",
+    ),
+    (
+        ["evaluation.windows=[1,0]"],
+        r"evaluation.windows = \[1, 0\] is not allowed: a non-empty list of integers K in "
+        r"\[1, data.n_steps - data.window \+ 1 = 701\]",
+    ),
     (["evaluation.windows=[]"], r"evaluation.windows = \[\] is not allowed: a non-empty list of integers K"),
     (["data=tiny", "evaluation.windows=[202]"], r"evaluation.windows = \[202\] is not allowed: .* = 201\]"),
     (["car.c3=-1"], r"car.c3 = -1.0 is not allowed: must be finite and > 0"),
@@ -75,8 +91,11 @@ BAD = [
     (["+no_such_top=1"], r"no_such_top = 1 is not allowed: unknown key"),
     # a dataset larger than any memory: 40 * 50 recordings of 1e9 steps, 4 channels at 8 bytes (6.4e13 bytes), and
     # 40 road profiles of 1e9 steps twice at 8 bytes (6.4e11): 6.464e13 bytes = 6.02e4 GiB
-    (["data.n_steps=1000000000"], r"data.n_roads \* data.n_masses \* data.n_steps = '40 \* 50 \* 1000000000' is "
-                                  r"not allowed: the dataset needs about 6.02e\+04 GiB, more than the"),
+    (
+        ["data.n_steps=1000000000"],
+        r"data.n_roads \* data.n_masses \* data.n_steps = '40 \* 50 \* 1000000000' is "
+        r"not allowed: the dataset needs about 6.02e\+04 GiB, more than the",
+    ),
 ]
 
 
@@ -87,14 +106,24 @@ def test_bad_values_are_named(make_cfg, overrides, match):
 
 
 def test_the_default_config_is_valid(make_cfg):
-    for extra in ([], ["model=paper_cnn"], ["data=tiny"], ["data=paper"], ["objective=combined"],
-                  ["objective=hybrid"], ["baseline=ls_bandpass"], ["seed=4294967295", "data.seed=0"]):
+    for extra in (
+        [],
+        ["model=paper_cnn"],
+        ["data=tiny"],
+        ["data=paper"],
+        ["objective=combined"],
+        ["objective=hybrid"],
+        ["baseline=ls_bandpass"],
+        ["seed=4294967295", "data.seed=0"],
+    ):
         validate(make_cfg(*extra))
 
 
 def test_every_experiment_is_valid(make_cfg):
-    from hybrid_sysid.config import CONF_DIR
     from pathlib import Path
+
+    from hybrid_sysid.config import CONF_DIR
+
     for name in sorted(p.stem for p in (Path(CONF_DIR) / "experiment").glob("*.yaml")):
         validate(make_cfg(f"experiment={name}"))
 
@@ -107,6 +136,7 @@ def test_a_misspelt_experiment_fails_at_composition(make_cfg):
 
 def test_the_size_bound_compares_with_the_memory_available(make_cfg, monkeypatch):
     import hybrid_sysid.config.validation as config
+
     cfg = make_cfg("data=tiny")  # 6 roads * 8 masses * 400 steps
     need = 6 * 8 * 400 * 4 * 8 + 2 * 6 * 400 * 8  # the channels at 8 bytes, the road profiles twice
     assert config.dataset_bytes(cfg) == need
@@ -119,17 +149,21 @@ def test_the_size_bound_compares_with_the_memory_available(make_cfg, monkeypatch
 
 def test_available_memory_is_at_most_what_the_kernel_reports():
     from hybrid_sysid.config import available_memory
+
     kb = next(int(ln.split()[1]) for ln in open("/proc/meminfo") if ln.startswith("MemAvailable:"))
     got = available_memory()
     assert 0 < got <= kb * 1024 * 1.05  # the kernel's figure moves a little between the two reads
 
 
-@pytest.mark.parametrize("overrides, error", [
-    (["data.no_such_key=1"], ConfigKeyError),
-    (["data.dt=fast"], ValidationError),
-    (["trainer.max_steps=1.5"], ValidationError),
-    (["evaluation.windows=[1.5]"], ValidationError),
-])
+@pytest.mark.parametrize(
+    "overrides, error",
+    [
+        (["data.no_such_key=1"], ConfigKeyError),
+        (["data.dt=fast"], ValidationError),
+        (["trainer.max_steps=1.5"], ValidationError),
+        (["evaluation.windows=[1.5]"], ValidationError),
+    ],
+)
 def test_unknown_keys_and_wrong_types_fail_at_composition(make_cfg, overrides, error):
     with pytest.raises((ConfigCompositionException, error)):
         make_cfg(*overrides)
@@ -144,8 +178,14 @@ def test_unknown_group_options_fail_at_composition(make_cfg, overrides):
 def run_cli(tmp_path, *args):
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     env["HYBRID_SYSID_CACHE"] = str(tmp_path / "cache")
-    return subprocess.run([sys.executable, "-c", "from hybrid_sysid.cli.train import main; main()", *args],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    return subprocess.run(
+        [sys.executable, "-c", "from hybrid_sysid.cli.train import main; main()", *args],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
 
 
 @pytest.mark.integration

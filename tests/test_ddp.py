@@ -60,10 +60,23 @@ def test_two_processes_draw_different_windows_and_write_one_record(tmp_path):
     script = tmp_path / "app.py"
     script.write_text(RECORDING)
     env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
-    proc = subprocess.run([sys.executable, str(script), "data=tiny", "trainer=ddp", "trainer.max_steps=12",
-                           "trainer.eval_every_n_steps=6", f"hydra.run.dir={tmp_path / 'run'}",
-                           f"data.cache_dir={tmp_path / 'cache'}"],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            str(script),
+            "data=tiny",
+            "trainer=ddp",
+            "trainer.max_steps=12",
+            "trainer.eval_every_n_steps=6",
+            f"hydra.run.dir={tmp_path / 'run'}",
+            f"data.cache_dir={tmp_path / 'cache'}",
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     batches = {r: [json.loads(x) for x in (tmp_path / f"rank{r}.jsonl").read_text().splitlines()] for r in (0, 1)}
     assert len(batches[0]) == len(batches[1]) == 3

@@ -13,46 +13,8 @@ from scipy.optimize import curve_fit
 
 from hybrid_sysid.inference.estimator import InputError, resample_to
 from hybrid_sysid.model.metrics import relative_deviation
-from hybrid_sysid.physics import road_profiles, simulate
 
-TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=200", "trainer.eval_every_n_steps=100",
-        "trainer.progress_bar=false"]
-C3, K3 = 615.0, 98935.0  # the paper's seat damper and spring (sec. 2.2)
-
-
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
-    """A FastCNN trained for 200 steps on data=tiny, its config saved as Hydra would. About 10% mean relative
-    deviation, against about 40% for a constant guess: enough to tell right input from wrong. The directory is
-    per test run and train() skips a completed run, so test_predict.py reuses this one without training."""
-    from hydra import compose, initialize_config_dir
-
-    from hybrid_sysid.config import CONF_DIR
-    from hybrid_sysid.training.run import train
-
-    base = tmp_path_factory.getbasetemp()
-    run_dir = base / "tiny_estimator_run"
-    overrides = [*TINY, f"data.cache_dir={base / 'tiny_estimator_cache'}"]
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose(config_name="config", overrides=overrides)
-    train(cfg, run_dir, overrides)
-    (run_dir / ".hydra").mkdir(exist_ok=True)
-    OmegaConf.save(cfg, run_dir / ".hydra" / "config.yaml")
-    return run_dir
-
-
-@pytest.fixture(scope="module")
-def est(tiny_run):
-    from hybrid_sysid import load_estimator
-    return load_estimator(tiny_run)
-
-
-def recordings(n, n_steps, dt, seed=7, speed=15.0):
-    """n recordings simulated like the run's data (consistent measurement): seat, body (n, n_steps), true p."""
-    m3 = np.random.default_rng(seed).uniform(50, 200, n)
-    road = road_profiles(("ABCDE" * n)[:n], n_steps, dt, speed, rng=seed)
-    seat, body = simulate(road, m3, dt, measurement="consistent")
-    return seat, body, np.stack([C3 / m3, K3 / m3], axis=1)
+from estimator_run import C3, K3, recordings  # the trained run's fixtures, tiny_run and est, come with it
 
 
 def test_predicts_what_training_evaluated(tiny_run, est):
@@ -68,7 +30,7 @@ def test_predicts_what_training_evaluated(tiny_run, est):
     for row, window in zip(batch["index"].numpy()[:6], batch["signals"][:6, 0].numpy()):
         views = np.lib.stride_tricks.sliding_window_view(seat_all[row], w)
         (start,) = np.flatnonzero((views == window).all(axis=1))
-        got = est.predict(seat_all[row, start:start + w], body_all[row, start:start + w], est.dt, windows=1)
+        got = est.predict(seat_all[row, start : start + w], body_all[row, start : start + w], est.dt, windows=1)
         want = written[written.recording == row].iloc[0]
         assert got.p1.item() == pytest.approx(want.p1_pred, rel=1e-5)
         assert got.p2.item() == pytest.approx(want.p2_pred, rel=1e-5)
@@ -78,7 +40,7 @@ def test_k_windows_evenly_spaced_mean_and_std(est):
     w = est.window
     seat, body, _ = recordings(1, w + 60, est.dt)
     got = est.predict(seat[0], body[0], est.dt, windows=3).iloc[0]
-    singles = pd.concat([est.predict(seat[0, s:s + w], body[0, s:s + w], est.dt, windows=1) for s in (0, 30, 60)])
+    singles = pd.concat([est.predict(seat[0, s : s + w], body[0, s : s + w], est.dt, windows=1) for s in (0, 30, 60)])
     for p in ("p1", "p2"):
         assert got[p] == pytest.approx(singles[p].mean(), rel=1e-6)
         assert got[f"{p}_std"] == pytest.approx(singles[p].std(ddof=0), rel=1e-5)
@@ -108,6 +70,7 @@ def test_m3_uses_the_runs_car(tiny_run, est, tmp_path):
     OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
     shutil.copytree(tiny_run / "checkpoints", tmp_path / "checkpoints")
     from hybrid_sysid import load_estimator
+
     other = load_estimator(tmp_path)
     seat, body, _ = recordings(2, 300, est.dt)
     got, paper = other.predict(seat, body, est.dt), est.predict(seat, body, est.dt)
@@ -130,8 +93,9 @@ def test_resampled_recording_estimated_nearly_as_well(est):
     assert relative_deviation(table[["p1", "p2"]].to_numpy(), true).mean() < 2 * native
 
 
-@pytest.mark.parametrize("dt_from, n, expected", [(0.0025, 800, 400), (0.0025, 801, 401), (0.01, 200, 400),
-                                                  (0.004, 500, 400)])
+@pytest.mark.parametrize(
+    "dt_from, n, expected", [(0.0025, 800, 400), (0.0025, 801, 401), (0.01, 200, 400), (0.004, 500, 400)]
+)
 def test_resample_keeps_a_sine(dt_from, n, expected):
     """A 7 Hz sine (inside the seat's 3.5-7 Hz resonance band) resampled to 5 ms keeps its amplitude and
     frequency (least-squares fit of a sine) and has ceil(n * up / down) samples; its ends stay close too."""
@@ -140,8 +104,9 @@ def test_resample_keeps_a_sine(dt_from, n, expected):
     y = resample_to(x, dt_from, dt_to)
     assert len(y) == expected
     t = np.arange(len(y)) * dt_to
-    (amp, f, phase), _ = curve_fit(lambda t, a, f, ph: a * np.sin(2 * np.pi * f * t + ph), t[20:-20], y[20:-20],
-                                   p0=(0.9, 6.9, 0.6))
+    (amp, f, phase), _ = curve_fit(
+        lambda t, a, f, ph: a * np.sin(2 * np.pi * f * t + ph), t[20:-20], y[20:-20], p0=(0.9, 6.9, 0.6)
+    )
     assert f == pytest.approx(f0, rel=1e-4) and amp == pytest.approx(1.0, abs=2e-3)
     inside = t <= (n - 1) * dt_from  # an upsampled last sample lies past the input's end
     assert np.abs(y - np.sin(2 * np.pi * f0 * t + 0.7))[inside].max() < 0.05
@@ -171,6 +136,7 @@ def test_bad_input_raises_value_error_naming_it(est):
 
 def test_run_without_network_raises_one_line(tiny_run, tmp_path):
     from hybrid_sysid import load_estimator
+
     with pytest.raises(InputError, match=r"has no .hydra/config.yaml; allowed: a run directory"):
         load_estimator(tmp_path)
     (tmp_path / ".hydra").mkdir()
@@ -195,6 +161,7 @@ def test_run_without_network_raises_one_line(tiny_run, tmp_path):
 
 def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
     from hybrid_sysid import load_estimator
+
     (tmp_path / ".hydra").mkdir()
     shutil.copy(tiny_run / ".hydra" / "config.yaml", tmp_path / ".hydra")
     (tmp_path / "checkpoints").mkdir()
@@ -209,9 +176,11 @@ def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
 def test_importing_physics_or_the_app_does_not_load_torch():
     # the app's process composes and checks the config (and a sweep's parent launches jobs) without torch, so a
     # refused value comes back in a second
-    code = ("import sys, hybrid_sysid.physics, hybrid_sysid.cli.train; assert 'torch' not in sys.modules, 'torch loaded'; "
-            "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "
-            "import hybrid_sysid; getattr(hybrid_sysid, 'nothing')")
+    code = (
+        "import sys, hybrid_sysid.physics, hybrid_sysid.cli.train; assert 'torch' not in sys.modules, 'torch loaded'; "
+        "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "
+        "import hybrid_sysid; getattr(hybrid_sysid, 'nothing')"
+    )
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert "AttributeError: module 'hybrid_sysid' has no attribute 'nothing'" in done.stderr
     assert "torch loaded" not in done.stderr

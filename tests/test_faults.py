@@ -14,10 +14,21 @@ import torch
 
 pytestmark = [pytest.mark.integration, pytest.mark.faults]
 
-ARGS = ["data=tiny", "trainer=debug", "trainer.max_steps=400", "trainer.eval_every_n_steps=200",
-        "trainer.progress_bar=false", "noise.eval_std=[0.0,0.05]"]
-TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
-        "trainer.progress_bar=false"]
+ARGS = [
+    "data=tiny",
+    "trainer=debug",
+    "trainer.max_steps=400",
+    "trainer.eval_every_n_steps=200",
+    "trainer.progress_bar=false",
+    "noise.eval_std=[0.0,0.05]",
+]
+TINY = [
+    "data=tiny",
+    "trainer=debug",
+    "trainer.max_steps=10",
+    "trainer.eval_every_n_steps=5",
+    "trainer.progress_bar=false",
+]
 
 
 def env_for(tmp_path):
@@ -26,13 +37,25 @@ def env_for(tmp_path):
 
 
 def launch(tmp_path, *args):
-    return subprocess.Popen([sys.executable, "-m", "hybrid_sysid", *args], cwd=tmp_path, env=env_for(tmp_path),
-                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    return subprocess.Popen(
+        [sys.executable, "-m", "hybrid_sysid", *args],
+        cwd=tmp_path,
+        env=env_for(tmp_path),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
+    )
 
 
 def run_app(tmp_path, *args, timeout=600):
-    return subprocess.run([sys.executable, "-m", "hybrid_sysid", *args], cwd=tmp_path, env=env_for(tmp_path),
-                          capture_output=True, text=True, timeout=timeout)
+    return subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid", *args],
+        cwd=tmp_path,
+        env=env_for(tmp_path),
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+    )
 
 
 def record(run_dir):
@@ -93,8 +116,9 @@ def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
     assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]
 
 
-@pytest.mark.parametrize("how", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)],
-                         ids=["SIGTERM", "SIGINT"])
+@pytest.mark.parametrize(
+    "how", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)], ids=["SIGTERM", "SIGINT"]
+)
 def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_path, uninterrupted, how):
     run = tmp_path / "run"
     code, out = interrupt(tmp_path, run, how)
@@ -112,10 +136,17 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
 def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, reference_run):
     out = tmp_path / "eval"
     # the default data: simulating it (an empty cache) outlasts the signal's way there
-    cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"run={reference_run}", "data=default",
-           f"hydra.run.dir={out}"]
-    proc = subprocess.Popen(cli, cwd=tmp_path, env=env_for(tmp_path), stdout=subprocess.PIPE,
-                            stderr=subprocess.STDOUT, text=True)
+    cli = [
+        sys.executable,
+        "-m",
+        "hybrid_sysid.cli.evaluate",
+        f"run={reference_run}",
+        "data=default",
+        f"hydra.run.dir={out}",
+    ]
+    proc = subprocess.Popen(
+        cli, cwd=tmp_path, env=env_for(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+    )
     deadline = time.time() + 600  # until the evaluation locks the dataset cache to simulate the data
     while not any((tmp_path / "cache").glob("*.lock")) and proc.poll() is None and time.time() < deadline:
         time.sleep(0.05)
@@ -134,8 +165,9 @@ def sweep_statuses(sw):
     return summary.drop_duplicates("run").set_index("run").status.to_dict()
 
 
-@pytest.mark.parametrize("launcher, how", [pytest.param("basic", signal.SIGTERM, marks=pytest.mark.slow),
-                                           ("joblib", signal.SIGINT)])
+@pytest.mark.parametrize(
+    "launcher, how", [pytest.param("basic", signal.SIGTERM, marks=pytest.mark.slow), ("joblib", signal.SIGINT)]
+)
 def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how):
     sw = tmp_path / "sw"
     args = ["-m", f"launcher={launcher}", "seed=0,1,2", *TINY, f"hydra.sweep.dir={sw}"]
@@ -188,12 +220,15 @@ def refused(proc, *words):
 
 
 # one case per kind of refusal (every value's own check: tests/test_config.py, through the same validate)
-@pytest.mark.parametrize("args, words", [
-    (["experiment=robustnes"], ["Could not find 'experiment/robustnes'"]),
-    (["+data.n_road=3"], ["data.n_road", "unknown key"]),
-    (["resume=no/such/dir"], ["resume", "no such directory"]),
-    (["hydra.run.dir=a_file/run"], ["hydra.run.dir", "cannot be created"]),
-])
+@pytest.mark.parametrize(
+    "args, words",
+    [
+        (["experiment=robustnes"], ["Could not find 'experiment/robustnes'"]),
+        (["+data.n_road=3"], ["data.n_road", "unknown key"]),
+        (["resume=no/such/dir"], ["resume", "no such directory"]),
+        (["hydra.run.dir=a_file/run"], ["hydra.run.dir", "cannot be created"]),
+    ],
+)
 def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words):
     (tmp_path / "a_file").write_text("not a directory")
     proc = run_app(tmp_path, *TINY, *args)
@@ -223,6 +258,9 @@ def test_no_command_replaces_a_completed_record(tmp_path):
     sweep = run_app(tmp_path, "-m", "model.optim.lr=0.001,-1", *TINY, f"hydra.sweep.dir={sw}")
     records = {p: p.read_bytes() for p in sw.glob("*/metrics.json")}
     assert sweep.returncode == 1 and len(records) == 2
-    refused(run_app(tmp_path, "-m", "model.optim.lr=-1,0.001", *TINY, f"hydra.sweep.dir={sw}"),
-            "hydra.sweep.dir", "holds a sweep of other overrides")
+    refused(
+        run_app(tmp_path, "-m", "model.optim.lr=-1,0.001", *TINY, f"hydra.sweep.dir={sw}"),
+        "hydra.sweep.dir",
+        "holds a sweep of other overrides",
+    )
     assert {p: p.read_bytes() for p in sw.glob("*/metrics.json")} == records

@@ -81,15 +81,17 @@ def test_no_import_cycle():
     __init__) has no cycle."""
     found = dict(modules())
     known = set(found)
-    graph = {name: {t for m, ns in project_imports(tree) for t in targets(m, ns, known) if t in known and t != name}
-             for name, tree in found.items()}
+    graph = {
+        name: {t for m, ns in project_imports(tree) for t in targets(m, ns, known) if t in known and t != name}
+        for name, tree in found.items()
+    }
     state: dict[str, int] = {}  # 1: on the current path, 2: done
 
     def visit(node, path):
         state[node] = 1
         for nxt in sorted(graph[node]):
             if state.get(nxt) == 1:
-                cycle = path[path.index(nxt):] + [nxt]
+                cycle = path[path.index(nxt) :] + [nxt]
                 pytest.fail("import cycle: " + " -> ".join(cycle))
             if nxt not in state:
                 visit(nxt, path + [nxt])
@@ -102,8 +104,10 @@ def test_no_import_cycle():
 
 def test_the_cycle_check_finds_a_cycle(monkeypatch):
     """The check above is not vacuous: two modules that import each other fail it."""
-    trees = {"hybrid_sysid.cli.a": ast.parse("from hybrid_sysid.cli.b import x"),
-             "hybrid_sysid.cli.b": ast.parse("from hybrid_sysid.cli import a")}
+    trees = {
+        "hybrid_sysid.cli.a": ast.parse("from hybrid_sysid.cli.b import x"),
+        "hybrid_sysid.cli.b": ast.parse("from hybrid_sysid.cli import a"),
+    }
     monkeypatch.setattr(sys.modules[__name__], "modules", lambda: iter(trees.items()))
     with pytest.raises(pytest.fail.Exception, match="import cycle"):
         test_no_import_cycle()

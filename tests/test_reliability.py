@@ -11,13 +11,14 @@ import pytest
 import torch
 
 from hybrid_sysid.config import ConfigError
-from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.runs.records import CompletedRecordError, previous_record, run_record, write_record
+from hybrid_sysid.runs.rundir import RunDir
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=20", "trainer.eval_every_n_steps=10"]
 
 
 # ---- records ---------------------------------------------------------------------------------------------------
+
 
 def test_a_completed_record_is_never_replaced(tmp_path):
     write_record(tmp_path, run_record("completed", ["seed=0"], 0))
@@ -51,9 +52,11 @@ def test_a_completed_run_of_other_overrides_is_refused(tmp_path):
 
 # ---- resume= ---------------------------------------------------------------------------------------------------
 
+
 def saved_run(tmp_path, make_cfg, *overrides):
     """A directory holding what Hydra saves before a run's first step."""
     from omegaconf import OmegaConf
+
     run = tmp_path / "run"
     (run / ".hydra").mkdir(parents=True)
     OmegaConf.save(make_cfg(*overrides), run / ".hydra" / "config.yaml")
@@ -83,7 +86,9 @@ def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
     moved = tmp_path / "moved"
     run.rename(moved)
     # where the run and the cache lie and the progress bar cannot change the numbers
-    RunDir(moved).check_resume(make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true"))
+    RunDir(moved).check_resume(
+        make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true")
+    )
 
 
 def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, caplog):
@@ -94,6 +99,7 @@ def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, capl
 
 
 # ---- a run's files, damaged --------------------------------------------------------------------------------------
+
 
 @pytest.fixture(scope="module")
 def finished(tmp_path_factory):
@@ -121,8 +127,16 @@ def numbers(record):
     return [(r["split"], r["noise_std"], r["parameter"], r["mean_rel_dev"]) for r in record["results"]]
 
 
-FILES = ["metrics.json", "curves.csv", "predictions.csv", "figures/test_predictions.png",
-         "figures/learning_curves.png", "checkpoints/last.ckpt", "checkpoints/best.ckpt", "both checkpoints"]
+FILES = [
+    "metrics.json",
+    "curves.csv",
+    "predictions.csv",
+    "figures/test_predictions.png",
+    "figures/learning_curves.png",
+    "checkpoints/last.ckpt",
+    "checkpoints/best.ckpt",
+    "both checkpoints",
+]
 
 
 @pytest.mark.faults
@@ -165,8 +179,11 @@ def test_checkpoints_name_their_files_relative_to_the_run(finished, tmp_path):
     from hybrid_sysid.training.callbacks import RunCheckpoint
 
     _, _, run, _ = finished
-    state = next(v for k, v in torch.load(run / "checkpoints" / "last.ckpt", weights_only=True)["callbacks"].items()
-                 if k.startswith("RunCheckpoint"))
+    state = next(
+        v
+        for k, v in torch.load(run / "checkpoints" / "last.ckpt", weights_only=True)["callbacks"].items()
+        if k.startswith("RunCheckpoint")
+    )
     assert state["dirpath"] == "." and state["best_model_path"] == "best.ckpt"
     assert state["last_model_path"] == "last.ckpt" and set(state["best_k_models"]) == {"best.ckpt"}
     moved = RunCheckpoint(dirpath=tmp_path / "elsewhere", filename="best", monitor="val/rel_dev", save_last=True)
@@ -180,6 +197,7 @@ def test_the_record_holds_the_thread_count(finished):
 
 
 # ---- the sweep summary ---------------------------------------------------------------------------------------------
+
 
 def test_a_sweep_whose_jobs_all_failed_still_gets_its_summary(tmp_path):
     from hybrid_sysid.cli.report import main as report
@@ -197,8 +215,10 @@ def test_a_sweep_whose_jobs_all_failed_still_gets_its_summary(tmp_path):
 def test_the_summary_warns_when_rows_mix_thread_counts(tmp_path):
     from hybrid_sysid.report.summary import write_summary
 
-    results = [{"split": "test", "noise_std": 0.0, "parameter": p, "mean_rel_dev": 0.01, "std_rel_dev": 0.0, "n": 4}
-               for p in ("p1", "p2")]
+    results = [
+        {"split": "test", "noise_std": 0.0, "parameter": p, "mean_rel_dev": 0.01, "std_rel_dev": 0.0, "n": 4}
+        for p in ("p1", "p2")
+    ]
     for i, threads in enumerate([1, 1, 2]):
         (tmp_path / str(i)).mkdir()
         write_record(tmp_path / str(i), run_record("completed", [f"seed={i}"], i, results=results, threads=threads))
@@ -216,8 +236,9 @@ SPEC_ARGS = dict(n_roads=3, n_masses=2, n_steps=300)
 
 
 def dataset(cache, n_steps=300):
-    from hybrid_sysid.data.dataset import DatasetSpec
     from hybrid_sysid.data.cache import get_dataset
+    from hybrid_sysid.data.dataset import DatasetSpec
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         ds = get_dataset(DatasetSpec(**{**SPEC_ARGS, "n_steps": n_steps}), cache)
@@ -226,12 +247,14 @@ def dataset(cache, n_steps=300):
 
 def reference(n_steps=300):
     from hybrid_sysid.data.dataset import DatasetSpec, generate_dataset
+
     return generate_dataset(DatasetSpec(**{**SPEC_ARGS, "n_steps": n_steps}))
 
 
 def test_a_directory_in_place_of_the_cache_file_costs_a_warning(tmp_path):
-    from hybrid_sysid.data.dataset import DatasetSpec
     from hybrid_sysid.data.cache import cache_path
+    from hybrid_sysid.data.dataset import DatasetSpec
+
     cache_path(DatasetSpec(**SPEC_ARGS), tmp_path).mkdir(parents=True)
     ds, warned = dataset(tmp_path)
     assert "not cached" in warned and "using it from memory" in warned
@@ -239,8 +262,9 @@ def test_a_directory_in_place_of_the_cache_file_costs_a_warning(tmp_path):
 
 
 def test_a_killed_writers_temporary_file_is_removed(tmp_path):
-    from hybrid_sysid.data.dataset import DatasetSpec
     from hybrid_sysid.data.cache import cache_path
+    from hybrid_sysid.data.dataset import DatasetSpec
+
     path = cache_path(DatasetSpec(**SPEC_ARGS), tmp_path)
     stale = path.parent / f".{path.name}.k1ll3d.tmp"  # files.write_atomic's name, left by a SIGKILL
     stale.write_bytes(b"half a dataset")
@@ -249,8 +273,9 @@ def test_a_killed_writers_temporary_file_is_removed(tmp_path):
 
 
 def test_cache_files_take_the_umask_mode(tmp_path):
-    from hybrid_sysid.data.dataset import DatasetSpec
     from hybrid_sysid.data.cache import cache_path
+    from hybrid_sysid.data.dataset import DatasetSpec
+
     old = os.umask(0o022)
     try:
         dataset(tmp_path)

@@ -18,8 +18,15 @@ optuna = pytest.importorskip("optuna")
 
 pytestmark = pytest.mark.integration
 
-TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
-        "trainer.curve_every_n_steps=null", "trainer.progress_bar=false", "hydra.sweeper.n_trials=3"]
+TINY = [
+    "data=tiny",
+    "trainer=debug",
+    "trainer.max_steps=10",
+    "trainer.eval_every_n_steps=5",
+    "trainer.curve_every_n_steps=null",
+    "trainer.progress_bar=false",
+    "hydra.sweeper.n_trials=3",
+]
 
 # the app with every label replaced by noise: the training windows, validation and test all see the poison
 POISONED = textwrap.dedent("""
@@ -53,9 +60,22 @@ def search(tmp_path, name, *args, script=None, status=0):
     env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
     sweep = tmp_path / name
     command = [sys.executable, str(script)] if script else [sys.executable, "-m", "hybrid_sysid"]
-    proc = subprocess.run([*command, "hparams_search=fast_cnn", *TINY, f"hydra.sweep.dir={sweep}",
-                           f"data.cache_dir={tmp_path / 'cache'}", f"hydra.sweeper.storage=sqlite:///{sweep}.db",
-                           *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    proc = subprocess.run(
+        [
+            *command,
+            "hparams_search=fast_cnn",
+            *TINY,
+            f"hydra.sweep.dir={sweep}",
+            f"data.cache_dir={tmp_path / 'cache'}",
+            f"hydra.sweeper.storage=sqlite:///{sweep}.db",
+            *args,
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=900,
+    )
     assert (proc.returncode == 0) == (status == 0), proc.stderr[-3000:]
     study = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{sweep}.db")
     records = [json.loads((sweep / str(t.number) / "metrics.json").read_text()) for t in study.trials]
@@ -72,8 +92,9 @@ def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_faile
         assert record["monitor"] == "val/rel_dev" and math.isfinite(trial.value)
         assert trial.value == pytest.approx(record["best_score"])
         for key, value in trial.params.items():  # the job ran the trial's parameters
-            assert any(o.split("=")[0] == key and float(o.split("=")[1]) == pytest.approx(value)
-                       for o in record["overrides"])
+            assert any(
+                o.split("=")[0] == key and float(o.split("=")[1]) == pytest.approx(value) for o in record["overrides"]
+            )
     best = yaml.safe_load((sweep / "optimization_results.yaml").read_text())
     assert best["best_value"] == pytest.approx(min(r["best_score"] for r in records[1:]))
     assert best["best_params"] == study.best_params

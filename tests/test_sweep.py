@@ -11,14 +11,25 @@ import pytest
 
 pytestmark = pytest.mark.integration  # subprocess runs of the app: minutes, still in the default suite
 
-TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
-        "trainer.progress_bar=false"]
+TINY = [
+    "data=tiny",
+    "trainer=debug",
+    "trainer.max_steps=10",
+    "trainer.eval_every_n_steps=5",
+    "trainer.progress_bar=false",
+]
 
 
 def run_app(tmp_path, *args):
     env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
-    return subprocess.run([sys.executable, "-m", "hybrid_sysid", *args], cwd=tmp_path, env=env,
-                          capture_output=True, text=True, timeout=600)
+    return subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid", *args],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -38,8 +49,12 @@ def test_summary_csv_equals_the_jobs_records(sweep):
         record = json.loads((job / "metrics.json").read_text())
         assert record["status"] == "completed"
         for r in record["results"]:
-            row = summary[(summary.run == job.name) & (summary.split == r["split"])
-                          & (summary.noise_std == r["noise_std"]) & (summary.parameter == r["parameter"])]
+            row = summary[
+                (summary.run == job.name)
+                & (summary.split == r["split"])
+                & (summary.noise_std == r["noise_std"])
+                & (summary.parameter == r["parameter"])
+            ]
             assert len(row) == 1
             assert row.mean_rel_dev.item() == r["mean_rel_dev"] and row.std_rel_dev.item() == r["std_rel_dev"]
             assert str(row.objective.item()) in record["overrides"][0]
@@ -56,8 +71,11 @@ def test_markdown_table_is_mean_and_spread_over_seeds(sweep):
             if (job / "metrics.json").exists():
                 rec = json.loads((job / "metrics.json").read_text())
                 if f"objective={objective}" in rec["overrides"]:
-                    vals += [r["mean_rel_dev"] for r in rec["results"]
-                             if r["split"] == "test" and r["noise_std"] == 0.0 and r["parameter"] == "p1"]
+                    vals += [
+                        r["mean_rel_dev"]
+                        for r in rec["results"]
+                        if r["split"] == "test" and r["noise_std"] == 0.0 and r["parameter"] == "p1"
+                    ]
         cell = f"{100 * np.mean(vals):.2f} ± {100 * np.std(vals, ddof=1):.2f}"
         line = next(ln for ln in md.splitlines() if ln.startswith("|") and ln.split("|")[1].strip() == objective)
         shown = line.split("|")[2].strip().removesuffix(" †").split(" [")[0]  # marks: best, worse; interval
@@ -68,8 +86,12 @@ def test_markdown_table_is_mean_and_spread_over_seeds(sweep):
 def test_report_rebuilds_the_same_table(sweep, tmp_path):
     _, sw = sweep
     out = tmp_path / "report"
-    proc = subprocess.run([sys.executable, "-m", "hybrid_sysid.report", str(sw), "--out", str(out)],
-                          capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid.report", str(sw), "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode == 0, proc.stderr
     assert (out / "summary.md").read_text().split("\n\n")[1:] == (sw / "summary.md").read_text().split("\n\n")[1:]
     pd.testing.assert_frame_equal(pd.read_csv(out / "summary.csv"), pd.read_csv(sw / "summary.csv"))
@@ -97,8 +119,16 @@ def test_joblib_launcher_runs_jobs_in_parallel_processes(tmp_path):
 @pytest.mark.slow
 def test_slurm_path_through_submitits_local_executor(tmp_path):
     pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
-    proc = run_app(tmp_path, "-m", "launcher=submitit_local", "seed=0,1", *TINY, "trainer.max_steps=4",
-                   "trainer.eval_every_n_steps=2", f"hydra.sweep.dir={tmp_path / 'sw'}")
+    proc = run_app(
+        tmp_path,
+        "-m",
+        "launcher=submitit_local",
+        "seed=0,1",
+        *TINY,
+        "trainer.max_steps=4",
+        "trainer.eval_every_n_steps=2",
+        f"hydra.sweep.dir={tmp_path / 'sw'}",
+    )
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
     assert set(summary.status) == {"completed"} and summary.run.nunique() == 2
@@ -108,10 +138,20 @@ def test_slurm_path_through_submitits_local_executor(tmp_path):
 @pytest.mark.slow
 def test_sweeps_started_together_get_their_own_directories(tmp_path):
     env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
-    args = [sys.executable, "-m", "hybrid_sysid", "-m", "seed=0", *TINY, "trainer.max_steps=2",
-            "trainer.eval_every_n_steps=1"]
-    procs = [subprocess.Popen(args, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-             for _ in range(2)]
+    args = [
+        sys.executable,
+        "-m",
+        "hybrid_sysid",
+        "-m",
+        "seed=0",
+        *TINY,
+        "trainer.max_steps=2",
+        "trainer.eval_every_n_steps=1",
+    ]
+    procs = [
+        subprocess.Popen(args, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        for _ in range(2)
+    ]
     assert [p.wait(timeout=600) for p in procs] == [0, 0]
     sweeps = list((tmp_path / "outputs" / "multirun").iterdir())
     assert len(sweeps) == 2
@@ -122,6 +162,7 @@ def test_sweeps_started_together_get_their_own_directories(tmp_path):
 def test_an_interrupted_sweep_completes_without_redoing_finished_jobs(tmp_path):
     import signal
     import time
+
     env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
     args = [sys.executable, "-m", "hybrid_sysid", "-m", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}"]
     proc = subprocess.Popen(args, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)

@@ -2,6 +2,7 @@
 loss, validation metrics, learning-curve rows and final results, the same numbers as the run's own record."""
 
 import importlib.util
+
 import pandas as pd
 import pytest
 import yaml
@@ -13,8 +14,10 @@ TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=60", "trainer.eval_ever
 
 
 def final_metrics(record) -> dict:
-    return {f"final/{r['split']}/noise_{r['noise_std']:g}/K{r['windows']}/{r['parameter']}_mean_rel_dev":
-            r["mean_rel_dev"] for r in record["results"]}
+    return {
+        f"final/{r['split']}/noise_{r['noise_std']:g}/K{r['windows']}/{r['parameter']}_mean_rel_dev": r["mean_rel_dev"]
+        for r in record["results"]
+    }
 
 
 def curve_series(run_dir) -> dict:
@@ -52,8 +55,9 @@ def test_tensorboard_logger_writes_event_files(make_cfg, tmp_path):
 
     record = train(make_cfg(*TINY, "logger=tensorboard"), tmp_path / "run")
     events = EventAccumulator(str(tmp_path / "run" / "tensorboard")).Reload()
-    series = {tag: [e.value for e in sorted(events.Scalars(tag), key=lambda e: e.step)]
-              for tag in events.Tags()["scalars"]}
+    series = {
+        tag: [e.value for e in sorted(events.Scalars(tag), key=lambda e: e.step)] for tag in events.Tags()["scalars"]
+    }
     check_logged(series, record, tmp_path / "run")
 
 
@@ -62,9 +66,15 @@ def test_mlflow_logger_groups_a_sweep_s_jobs_in_one_experiment(make_cfg, tmp_pat
     from mlflow import MlflowClient
 
     uri = f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}"
-    records = {seed: train(make_cfg(*TINY, "logger=mlflow", f"logger.mlflow.tracking_uri={uri}", f"seed={seed}"),
-                           tmp_path / str(seed), experiment="sweep-a", run_name=f"seed={seed}")
-               for seed in (0, 1)}
+    records = {
+        seed: train(
+            make_cfg(*TINY, "logger=mlflow", f"logger.mlflow.tracking_uri={uri}", f"seed={seed}"),
+            tmp_path / str(seed),
+            experiment="sweep-a",
+            run_name=f"seed={seed}",
+        )
+        for seed in (0, 1)
+    }
     client = MlflowClient(uri)
     runs = client.search_runs([client.get_experiment_by_name("sweep-a").experiment_id])
     assert sorted(r.info.run_name for r in runs) == ["seed=0", "seed=1"]
@@ -72,8 +82,10 @@ def test_mlflow_logger_groups_a_sweep_s_jobs_in_one_experiment(make_cfg, tmp_pat
         seed = int(run.info.run_name.removeprefix("seed="))
         assert run.info.status == "FINISHED" and run.data.params["seed"] == str(seed)
         assert float(run.data.params["model.optim.lr"]) == 0.02
-        series = {name: [m.value for m in sorted(client.get_metric_history(run.info.run_id, name),
-                                                  key=lambda m: m.step)] for name in run.data.metrics}
+        series = {
+            name: [m.value for m in sorted(client.get_metric_history(run.info.run_id, name), key=lambda m: m.step)]
+            for name in run.data.metrics
+        }
         check_logged(series, records[seed], tmp_path / str(seed))
 
 
@@ -81,8 +93,11 @@ def test_a_logger_without_its_library_is_a_one_line_error(make_cfg, monkeypatch)
     cfg = make_cfg("data=tiny", "logger=mlflow")
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "mlflow" else real(name, *a))
-    with pytest.raises(ConfigError, match=r'^logger.mlflow needs the mlflow package, which is not installed: '
-                                          r'pip install -e "\.\[loggers\]"$'):
+    with pytest.raises(
+        ConfigError,
+        match=r"^logger.mlflow needs the mlflow package, which is not installed: "
+        r'pip install -e "\.\[loggers\]"$',
+    ):
         validate(cfg)
 
 
@@ -90,10 +105,14 @@ def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
     from hybrid_sysid.cli import job as app
 
     monkeypatch.setattr(app, "installed", lambda module: False)
-    assert app.missing_extra(["seed=1", "hparams_search=fast_cnn"]) == \
-        'hparams_search=fast_cnn needs hydra-optuna-sweeper, which is not installed: pip install -e ".[search]"'
-    assert "pip install -e \".[slurm]\"" in app.missing_extra(["launcher=slurm"])
-    assert app.missing_extra(["experiment=tuned"]) == \
-        'experiment=tuned needs optuna, which is not installed: pip install -e ".[search]"'
+    assert (
+        app.missing_extra(["seed=1", "hparams_search=fast_cnn"])
+        == 'hparams_search=fast_cnn needs hydra-optuna-sweeper, which is not installed: pip install -e ".[search]"'
+    )
+    assert 'pip install -e ".[slurm]"' in app.missing_extra(["launcher=slurm"])
+    assert (
+        app.missing_extra(["experiment=tuned"])
+        == 'experiment=tuned needs optuna, which is not installed: pip install -e ".[search]"'
+    )
     monkeypatch.setattr(app, "installed", lambda module: True)
     assert app.missing_extra(["hparams_search=fast_cnn", "launcher=slurm"]) is None

@@ -19,10 +19,12 @@ def tiny_run(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
+
     tmp = tmp_path_factory.mktemp("run")
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose(config_name="config", overrides=[*TINY, f"data.cache_dir={tmp / 'cache'}",
-                                                        "trainer.progress_bar=false"])
+        cfg = compose(
+            config_name="config", overrides=[*TINY, f"data.cache_dir={tmp / 'cache'}", "trainer.progress_bar=false"]
+        )
     return train(cfg, tmp / "run", overrides=TINY), tmp / "run"
 
 
@@ -33,8 +35,9 @@ def test_record_follows_the_schema(tiny_run):
     assert on_disk["status"] == "completed" and on_disk["error"] is None
     assert on_disk["overrides"] == TINY and on_disk["seed"] == 0 and on_disk["steps"] == 20
     keys = {(r["split"], r["noise_std"], r["parameter"]) for r in on_disk["results"]}
-    expected = {(s, n, p) for s, n in [("train", 0.0), ("val", 0.0), ("test", 0.0), ("test", 0.05)]
-                for p in ("p1", "p2")}
+    expected = {
+        (s, n, p) for s, n in [("train", 0.0), ("val", 0.0), ("test", 0.0), ("test", 0.05)] for p in ("p1", "p2")
+    }
     assert keys == expected
     for r in on_disk["results"]:
         assert r["mean_rel_dev"] >= 0 and r["std_rel_dev"] >= 0 and r["n"] > 0
@@ -86,10 +89,24 @@ def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):
     import os
     import subprocess
     import sys
+
     env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
-    proc = subprocess.run([sys.executable, "-m", "hybrid_sysid", *TINY, "model.optim.lr=1e30",
-                           "trainer.progress_bar=false", f"hydra.run.dir={tmp_path / 'run'}"],
-                          cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybrid_sysid",
+            *TINY,
+            "model.optim.lr=1e30",
+            "trainer.progress_bar=false",
+            f"hydra.run.dir={tmp_path / 'run'}",
+        ],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert proc.returncode != 0
     record = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert record["status"] == "failed"
@@ -99,12 +116,15 @@ def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):
 
 
 # (C3, K3) of the paper's car: 615 Ns/m, 98935 N/m (sec. 2.2); seat masses 50-200 kg by default
-@pytest.mark.parametrize("overrides, c3, k3, m3_min, m3_max", [
-    ([], 615.0, 98935.0, 50, 200),
-    (["car.c3=700"], 700.0, 98935.0, 50, 200),
-    (["car.k3=90000", "data.m3_min=80"], 615.0, 90000.0, 80, 200),
-    (["data.m3_max=150"], 615.0, 98935.0, 50, 150),
-])
+@pytest.mark.parametrize(
+    "overrides, c3, k3, m3_min, m3_max",
+    [
+        ([], 615.0, 98935.0, 50, 200),
+        (["car.c3=700"], 700.0, 98935.0, 50, 200),
+        (["car.k3=90000", "data.m3_min=80"], 615.0, 90000.0, 80, 200),
+        (["data.m3_max=150"], 615.0, 98935.0, 50, 150),
+    ],
+)
 def test_the_prior_follows_the_car_and_the_mass_range(make_cfg, overrides, c3, k3, m3_min, m3_max):
     p_min, p_max = np.array([c3, k3]) / m3_max, np.array([c3, k3]) / m3_min
     scale = torch.tensor((p_min + p_max) / 2, dtype=torch.float32)
@@ -138,13 +158,19 @@ def test_test_errors_per_road_class_recombine_into_the_whole_split(tiny_run):
     rows = record["by_road_class"]
     assert rows and {r["road_class"] for r in rows} == set(pred[pred.split == "test"].road_class)
     for whole in (r for r in record["results"] if r["split"] == "test"):
-        parts = [r for r in rows if (r["noise_std"], r["windows"], r["parameter"]) ==
-                 (whole["noise_std"], whole["windows"], whole["parameter"])]
+        parts = [
+            r
+            for r in rows
+            if (r["noise_std"], r["windows"], r["parameter"])
+            == (whole["noise_std"], whole["windows"], whole["parameter"])
+        ]
         assert sum(r["n"] for r in parts) == whole["n"]
         assert sum(r["mean_rel_dev"] * r["n"] for r in parts) / whole["n"] == pytest.approx(whole["mean_rel_dev"])
         for r in parts:
-            sub = pred[(pred.split == "test") & (pred.noise_std == r["noise_std"])
-                       & (pred.road_class == r["road_class"])]
+            sub = pred[
+                (pred.split == "test") & (pred.noise_std == r["noise_std"]) & (pred.road_class == r["road_class"])
+            ]
             p = r["parameter"]
-            assert r["mean_rel_dev"] == pytest.approx(((sub[f"{p}_true"] - sub[f"{p}_pred"]).abs()
-                                                       / sub[f"{p}_true"]).mean())
+            assert r["mean_rel_dev"] == pytest.approx(
+                ((sub[f"{p}_true"] - sub[f"{p}_pred"]).abs() / sub[f"{p}_true"]).mean()
+            )

@@ -27,11 +27,14 @@ def save_config(cfg, run_dir: Path):
     (run_dir / ".hydra" / "config.yaml").write_text(OmegaConf.to_yaml(cfg))
 
 
-@pytest.mark.parametrize("preset, factors", [
-    ("paper", {}),
-    ("soft_seat", {"c3": 1.12, "k3": 0.90}),
-    ("compact", {"m1": 0.9, "m2": 0.6, "k1": 1.3, "k2": 1.4, "c2": 0.6}),
-])
+@pytest.mark.parametrize(
+    "preset, factors",
+    [
+        ("paper", {}),
+        ("soft_seat", {"c3": 1.12, "k3": 0.90}),
+        ("compact", {"m1": 0.9, "m2": 0.6, "k1": 1.3, "k2": 1.4, "c2": 0.6}),
+    ],
+)
 def test_car_presets_are_the_paper_car_scaled(make_cfg, preset, factors):
     cfg = make_cfg(f"car={preset}") if preset != "paper" else make_cfg()
     want = {k: v * factors.get(k, 1.0) for k, v in PAPER.items()}
@@ -40,12 +43,15 @@ def test_car_presets_are_the_paper_car_scaled(make_cfg, preset, factors):
         assert cfg.car[k] == pytest.approx(v, rel=1e-12), k
 
 
-@pytest.mark.parametrize("overrides, match", [
-    (["car.c3=0"], r"car.c3 = 0.0 is not allowed: must be finite and > 0"),
-    (["car=compact", "car.m2=nan"], r"car.m2 = nan is not allowed: must be finite and > 0"),
-    (["car.k1=inf"], r"car.k1 = inf is not allowed: must be finite and > 0"),
-    (["data.seat_spread=1.0"], r"data.seat_spread = 1.0 is not allowed: must lie in \[0, 1\)"),
-])
+@pytest.mark.parametrize(
+    "overrides, match",
+    [
+        (["car.c3=0"], r"car.c3 = 0.0 is not allowed: must be finite and > 0"),
+        (["car=compact", "car.m2=nan"], r"car.m2 = nan is not allowed: must be finite and > 0"),
+        (["car.k1=inf"], r"car.k1 = inf is not allowed: must be finite and > 0"),
+        (["data.seat_spread=1.0"], r"data.seat_spread = 1.0 is not allowed: must lie in \[0, 1\)"),
+    ],
+)
 def test_bad_car_values_are_named(make_cfg, overrides, match):
     with pytest.raises(ConfigError, match=match):
         validate(make_cfg(*overrides))
@@ -54,8 +60,11 @@ def test_bad_car_values_are_named(make_cfg, overrides, match):
 def test_the_stable_time_step_follows_the_car(make_cfg):
     # a seat spring 20x stiffer: the seat mode at 50 kg is sqrt(20) times faster, the limit about that much lower
     stiff = make_cfg("car.k3=1978700", "data.dt=0.01")
-    with pytest.raises(ConfigError, match=r"data.dt = 0.01 is not allowed: .*unstable above 0.00\d+ s for this car "
-                                          r"\(m1=145, .*k3=1\.9787e\+06"):
+    with pytest.raises(
+        ConfigError,
+        match=r"data.dt = 0.01 is not allowed: .*unstable above 0.00\d+ s for this car "
+        r"\(m1=145, .*k3=1\.9787e\+06",
+    ):
         validate(stiff)
     limit = stable_dt_limit(QuarterCar(k3=1978700.0))
     # the limit is where the eq.-11 step map's spectral radius crosses 1: check it by eigenvalues directly
@@ -64,6 +73,7 @@ def test_the_stable_time_step_follows_the_car(make_cfg):
         p1, p2 = c.parameters(50.0)
         # the step is linear: its matrix is the image of the unit states (road 0)
         from hybrid_sysid.physics import step
+
         cols = np.array(step(*np.eye(6), 0.0, p1, p2, dt, c.coefficients(), True)[:6])
         assert (max(abs(np.linalg.eigvals(cols))) <= 1 + 1e-9) == stable
     validate(make_cfg("car.k3=1978700", f"data.dt={0.99 * limit}"))  # below it: fine
@@ -84,10 +94,18 @@ def source(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
+
     tmp = tmp_path_factory.mktemp("source")
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose(config_name="config", overrides=[*TINY, f"data.cache_dir={tmp / 'cache'}",
-                                                        "trainer.progress_bar=false", "evaluation.windows=[1,4]"])
+        cfg = compose(
+            config_name="config",
+            overrides=[
+                *TINY,
+                f"data.cache_dir={tmp / 'cache'}",
+                "trainer.progress_bar=false",
+                "evaluation.windows=[1,4]",
+            ],
+        )
     run_dir = tmp / "run"
     save_config(cfg, run_dir)
     return cfg, train(cfg, run_dir, overrides=TINY), run_dir
@@ -109,6 +127,7 @@ def test_evaluation_on_another_car_changes_the_labels_not_the_network(source, tm
     other = OmegaConf.merge(cfg, {"car": {"c3": 615.0 * 1.12}})
     evaluate_checkpoint(other, run_dir, tmp_path / "eval", overrides=[])
     import pandas as pd
+
     pred = pd.read_csv(tmp_path / "eval" / "predictions.csv")
     np.testing.assert_allclose(pred.p1_true, 615.0 * 1.12 / pred.m3, rtol=1e-6)  # the target's labels
 
@@ -117,10 +136,20 @@ def adapt(source_dir, tmp_path, name, poison=None):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
+
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose(config_name="config", overrides=[
-            *TINY, f"data.cache_dir={tmp_path / 'cache'}", "trainer.progress_bar=false", "objective=hybrid",
-            "car=soft_seat", f"init_from={source_dir}", "model.optim.lr=5e-3"])
+        cfg = compose(
+            config_name="config",
+            overrides=[
+                *TINY,
+                f"data.cache_dir={tmp_path / 'cache'}",
+                "trainer.progress_bar=false",
+                "objective=hybrid",
+                "car=soft_seat",
+                f"init_from={source_dir}",
+                "model.optim.lr=5e-3",
+            ],
+        )
     if poison is not None:  # the target's labels replaced by garbage: a label-free adaptation must not notice
         poison()
     record = train(cfg, tmp_path / name, overrides=[])
@@ -144,6 +173,7 @@ def test_adaptation_starts_from_the_sources_weights(source, tmp_path, make_cfg):
     cfg = make_cfg(*TINY, "objective=hybrid", f"init_from={run_dir}")
     model = build_model(cfg)
     from hybrid_sysid.training.build import load_network
+
     load_network(model, cfg, run_dir, "init_from")
     best = torch.load(run_dir / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]
     for key, value in model.net.state_dict().items():
@@ -153,8 +183,11 @@ def test_adaptation_starts_from_the_sources_weights(source, tmp_path, make_cfg):
 def test_another_architecture_is_one_named_error(source, tmp_path, make_cfg):
     _, _, run_dir = source
     cfg = make_cfg(*TINY, "objective=hybrid", f"init_from={run_dir}", "model.net.channels=16")
-    with pytest.raises(ConfigError, match=r"^init_from = '.*' is not allowed: its network differs from model.net "
-                                          r"in channels \(32 there, 16 here\)$"):
+    with pytest.raises(
+        ConfigError,
+        match=r"^init_from = '.*' is not allowed: its network differs from model.net "
+        r"in channels \(32 there, 16 here\)$",
+    ):
         train(cfg, tmp_path / "other", overrides=[])
     assert not (tmp_path / "other").exists()  # before any work
     with pytest.raises(ConfigError, match=r"init_from = '.*nowhere' is not allowed: it has no .hydra/config.yaml"):
@@ -163,6 +196,7 @@ def test_another_architecture_is_one_named_error(source, tmp_path, make_cfg):
 
 def test_the_transfer_plan(make_cfg, tmp_path):
     from hybrid_sysid.experiments.transfer import plan
+
     cfg = make_cfg("experiment=transfer", "data=tiny", "seed=2")
     runs = plan(cfg, tmp_path)
     assert len(runs) == 1 + 4 * 3
@@ -182,14 +216,22 @@ def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path):
     _, _, run_dir = source
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     cli = [sys.executable, "-c", "from hybrid_sysid.cli.evaluate import main; main()"]
-    bad = subprocess.run(cli + [f"run={run_dir}", "objective=hybrid"], cwd=tmp_path, env=env, capture_output=True, text=True,
-                         timeout=300)
+    bad = subprocess.run(
+        cli + [f"run={run_dir}", "objective=hybrid"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300
+    )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert bad.stderr.strip().splitlines()[-1].startswith("error: objective cannot be overridden in an evaluation")
-    sweep = subprocess.run(cli + ["-m", f"run={run_dir}", "car=paper,soft_seat", "hydra.sweep.dir=sweep"], cwd=tmp_path, env=env,
-                           capture_output=True, text=True, timeout=600)
+    sweep = subprocess.run(
+        cli + ["-m", f"run={run_dir}", "car=paper,soft_seat", "hydra.sweep.dir=sweep"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert sweep.returncode == 0, sweep.stderr[-2000:]
     import pandas as pd
+
     summary = pd.read_csv(tmp_path / "sweep" / "summary.csv")
     assert set(summary.car) == {"paper", "soft_seat"} and (summary.status == "completed").all()
     for job in ("0", "1"):

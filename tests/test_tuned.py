@@ -1,5 +1,5 @@
-"""experiment=tuned (hybrid_sysid.experiments.tuned): the search space read as hydra-optuna-sweeper reads it, trial 0 is the
-defaults, the tuned runs carry the best trial's values (the lowest recorded validation figure), a hybrid search
+"""experiment=tuned (hybrid_sysid.experiments.tuned): the search space read as hydra-optuna-sweeper reads it, trial 0
+is the defaults, the tuned runs carry the best trial's values (the lowest recorded validation figure), a hybrid search
 never reads labels, a re-run trains nothing, and the sweep as a user runs it ends with a table of the default and
 tuned runs only and the searches' table."""
 
@@ -15,12 +15,20 @@ from omegaconf import OmegaConf
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 
-from hybrid_sysid.experiments.presets import preset  # noqa: E402
 from hybrid_sysid.config import ConfigError  # noqa: E402
+from hybrid_sysid.experiments.presets import preset  # noqa: E402
 from hybrid_sysid.experiments.tuned import defaults_in, run_tuned, search_space  # noqa: E402
 
-TINY = ["experiment=tuned", "data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_every_n_steps=5",
-        "tuned.n_trials=3", "tuned.seeds=[0]", "evaluation.windows=[1]"]
+TINY = [
+    "experiment=tuned",
+    "data=tiny",
+    "trainer=debug",
+    "trainer.max_steps=10",
+    "trainer.eval_every_n_steps=5",
+    "tuned.n_trials=3",
+    "tuned.seeds=[0]",
+    "evaluation.windows=[1]",
+]
 
 
 def test_the_space_is_the_one_hydra_optuna_sweeper_builds_from_the_preset():
@@ -30,8 +38,10 @@ def test_the_space_is_the_one_hydra_optuna_sweeper_builds_from_the_preset():
     parser = OverridesParser.create()
     fast_cnn = dict(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
     for params in (fast_cnn, {"a": "interval(1, 4)", "b": "tag(log, interval(1, 100))", "c": "choice(x, y)"}):
-        theirs = {k: impl.create_optuna_distribution_from_override(parser.parse_override(f"{k}={v}"))
-                  for k, v in params.items()}
+        theirs = {
+            k: impl.create_optuna_distribution_from_override(parser.parse_override(f"{k}={v}"))
+            for k, v in params.items()
+        }
         assert search_space(params) == theirs
     with pytest.raises(ConfigError, match=r"hydra.sweeper.params.a = 'range\(1,4\)' is not allowed"):
         search_space({"a": "range(1,4)"})
@@ -62,10 +72,13 @@ def hybrid_job(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
+
     tmp = tmp_path_factory.mktemp("tuned")
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose(config_name="config", overrides=[*TINY, "objective=hybrid", f"data.cache_dir={tmp / 'cache'}",
-                                                        "trainer.progress_bar=false"])
+        cfg = compose(
+            config_name="config",
+            overrides=[*TINY, "objective=hybrid", f"data.cache_dir={tmp / 'cache'}", "trainer.progress_bar=false"],
+        )
     return cfg, run_tuned(cfg, tmp / "job", ["objective=hybrid"]), tmp / "job"
 
 
@@ -104,10 +117,23 @@ def test_a_hybrid_search_never_reads_labels_and_a_rerun_trains_nothing(hybrid_jo
 @pytest.mark.integration
 def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
     sweep = tmp_path / "sweep"
-    proc = subprocess.run([sys.executable, "-m", "hybrid_sysid", *TINY, "tuned.n_trials=1", "objective=hybrid",
-                           "trainer.progress_bar=false", f"hydra.sweep.dir={sweep}",
-                           f"data.cache_dir={tmp_path / 'cache'}"], cwd=tmp_path, capture_output=True, text=True,
-                          timeout=600)
+    proc = subprocess.run(
+        [
+            sys.executable,
+            "-m",
+            "hybrid_sysid",
+            *TINY,
+            "tuned.n_trials=1",
+            "objective=hybrid",
+            "trainer.progress_bar=false",
+            f"hydra.sweep.dir={sweep}",
+            f"data.cache_dir={tmp_path / 'cache'}",
+        ],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     summary = pd.read_csv(sweep / "summary.csv")
     assert sorted(summary.run.unique()) == ["0/default/0", "0/tuned/0"]  # the trials are left out
@@ -116,6 +142,7 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
     assert "val/loss" in tuning and "1/1" in tuning  # the monitor and the completed trials of the search
     assert (sweep / "figures" / "tuning.png").stat().st_size > 0
     from hybrid_sysid.cli.report import main as report
+
     assert report([sweep, "--out", tmp_path / "all"]) == 0  # without --exclude the trials are rows too
     assert pd.read_csv(tmp_path / "all" / "summary.csv").run.nunique() == 3
     assert report([sweep, "--out", tmp_path / "some", "--exclude", "*/search/*"]) == 0
@@ -124,12 +151,14 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
 
 def test_a_failed_trial_is_recorded_and_the_study_goes_on(make_cfg, tmp_path, monkeypatch):
     from hybrid_sysid.training import run as train_module
+
     build_model = train_module.build_model
 
     def failing(cfg):  # the seeded sampler's first draw after the defaults has 16 channels
         if cfg.model.net.channels == 16:
             raise RuntimeError("a failing trial")
         return build_model(cfg)
+
     monkeypatch.setattr(train_module, "build_model", failing)
     cfg = make_cfg(*TINY, "tuned.n_trials=2")
     run_tuned(cfg, tmp_path / "job", [])

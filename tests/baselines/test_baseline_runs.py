@@ -1,5 +1,5 @@
-"""A baseline is a config group of its own: `baseline=ls_window` runs through train() without Lightning and writes the same
-record, predictions and figures as a network run."""
+"""A baseline is a config group of its own: `baseline=ls_window` runs through train() without Lightning and writes
+the same record, predictions and figures as a network run."""
 
 import json
 
@@ -19,12 +19,15 @@ def compose_cfg(tmp_path_factory):
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
+
     cache = tmp_path_factory.mktemp("cache")
 
     def _make(*overrides):
         with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            return compose(config_name="config", overrides=[*overrides, f"data.cache_dir={cache}",
-                                                            "trainer.progress_bar=false"])
+            return compose(
+                config_name="config", overrides=[*overrides, f"data.cache_dir={cache}", "trainer.progress_bar=false"]
+            )
+
     return _make
 
 
@@ -39,8 +42,9 @@ def direct_fit(dm, split, std, k):
     """Independent reference: numpy lstsq per evaluation window, mean over each recording's windows."""
     batch = dm.eval_batch(split, std, windows=k)
     seat, v, d = (batch[key].numpy().astype(np.float64) for key in ("signals", "rel_vel", "rel_disp"))
-    p = np.stack([np.linalg.lstsq(np.stack([-v[i], -d[i]], axis=1), seat[i, 0], rcond=None)[0]
-                  for i in range(len(seat))])
+    p = np.stack(
+        [np.linalg.lstsq(np.stack([-v[i], -d[i]], axis=1), seat[i, 0], rcond=None)[0] for i in range(len(seat))]
+    )
     return p.reshape(-1, k, 2).mean(axis=1)
 
 
@@ -52,9 +56,18 @@ def test_ls_window_run_writes_a_completed_record_equal_to_a_direct_computation(w
     assert on_disk["train_seconds"] >= 0 and on_disk["best_checkpoint"] is None
     assert not (run_dir / "checkpoints").exists()  # no Lightning
     keys = {(r["split"], r["noise_std"], r["windows"], r["parameter"]) for r in on_disk["results"]}
-    assert keys == {(s, n, k, p) for s, n, k in [("train", 0.0, 1), ("val", 0.0, 1), ("test", 0.0, 1),
-                                                  ("test", 0.0, 3), ("test", 0.05, 1), ("test", 0.05, 3)]
-                    for p in ("p1", "p2")}
+    assert keys == {
+        (s, n, k, p)
+        for s, n, k in [
+            ("train", 0.0, 1),
+            ("val", 0.0, 1),
+            ("test", 0.0, 1),
+            ("test", 0.0, 3),
+            ("test", 0.05, 1),
+            ("test", 0.05, 3),
+        ]
+        for p in ("p1", "p2")
+    }
     dm = build_datamodule(cfg)
     dm.setup()
     rows = dm.rows("test")
@@ -91,9 +104,12 @@ def test_ls_window_run_writes_predictions_curves_and_figures(window_run):
 def test_series_baselines_run_and_ignore_k(compose_cfg, tmp_path, model):
     record = train(compose_cfg(f"baseline={model}", *TINY), tmp_path / "run", overrides=[f"baseline={model}"])
     assert record["status"] == "completed" and record["steps"] == 0
-    test = {(r["noise_std"], r["windows"], r["parameter"]): r["mean_rel_dev"] for r in record["results"]
-            if r["split"] == "test"}
-    for (std, k, p), value in test.items():
+    test = {
+        (r["noise_std"], r["windows"], r["parameter"]): r["mean_rel_dev"]
+        for r in record["results"]
+        if r["split"] == "test"
+    }
+    for (std, _k, p), value in test.items():
         assert value == test[(std, 1, p)]  # series spans see no windows
         if std == 0.0:
             assert value < (1e-4 if model == "ls_series" else 1e-6)

@@ -4,7 +4,6 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.baselines import LeastSquaresFit, fit_p
-
 from hybrid_sysid.physics.filters import bandpass_taps, fir_valid
 
 DT = 0.005  # 200 Hz sampling, Nyquist 100 Hz
@@ -77,23 +76,34 @@ def test_bad_values_raise_one_line_naming_key_value_and_range(kwargs, match):
     assert "\n" not in str(info.value)
 
 
-@pytest.mark.parametrize("overrides, match", [
-    (["baseline=ls_bandpass", "baseline.high_hz=150"],
-     r"baseline\.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)"),
-    (["baseline=ls_bandpass", "baseline.span=window", "baseline.taps=495"],
-     r"baseline\.taps = 495 is not allowed: must be <= data\.window - 9 = 491"),
-    (["baseline=ls_bandpass", "data.n_steps=150", "data.window=100"],
-     r"baseline\.taps = 151 is not allowed: must be <= data\.n_steps - 9 = 141"),
-    (["baseline=ls_window", "baseline.span=all"], r"baseline\.span = 'all' is not allowed: one of window, series"),
-])
+@pytest.mark.parametrize(
+    "overrides, match",
+    [
+        (
+            ["baseline=ls_bandpass", "baseline.high_hz=150"],
+            r"baseline\.high_hz = 150 is not allowed: must lie in \(low_hz = 4, Nyquist = 100 Hz\)",
+        ),
+        (
+            ["baseline=ls_bandpass", "baseline.span=window", "baseline.taps=495"],
+            r"baseline\.taps = 495 is not allowed: must be <= data\.window - 9 = 491",
+        ),
+        (
+            ["baseline=ls_bandpass", "data.n_steps=150", "data.window=100"],
+            r"baseline\.taps = 151 is not allowed: must be <= data\.n_steps - 9 = 141",
+        ),
+        (["baseline=ls_window", "baseline.span=all"], r"baseline\.span = 'all' is not allowed: one of window, series"),
+    ],
+)
 def test_config_validation_reports_the_baselines_errors(make_cfg, overrides, match):
     from hybrid_sysid.config import ConfigError, validate
+
     with pytest.raises(ConfigError, match=match):
         validate(make_cfg(*overrides))
 
 
 def test_baseline_configs_are_valid(make_cfg):
     from hybrid_sysid.config import validate
+
     for model in ("ls_window", "ls_series", "ls_bandpass"):
         for data in ("default", "tiny", "paper"):
             validate(make_cfg(f"baseline={model}", f"data={data}"))

@@ -42,16 +42,20 @@ def test_clean_recordings_give_back_p(clean_recordings):
     r = clean_recordings
     np.testing.assert_allclose(fit_p(r["seat"], r["rel_vel"], r["rel_disp"]), r["p"], rtol=1e-6)
     win = slice(400, 900)
-    np.testing.assert_allclose(fit_p(r["seat"][:, win], r["rel_vel"][:, win], r["rel_disp"][:, win]), r["p"],
-                               rtol=1e-6)
+    np.testing.assert_allclose(fit_p(r["seat"][:, win], r["rel_vel"][:, win], r["rel_disp"][:, win]), r["p"], rtol=1e-6)
 
 
-@pytest.mark.parametrize("span, filt, tol", [
-    ("window", "none", 1e-6), ("window", "bandpass", 1e-6), ("series", "bandpass", 1e-6),
-    # the series variant re-integrates the float32-stored accelerations: their rounding accumulates over
-    # 1200 steps in rel_vel / rel_disp (the band-pass removes that slow drift again)
-    ("series", "none", 3e-5),
-])
+@pytest.mark.parametrize(
+    "span, filt, tol",
+    [
+        ("window", "none", 1e-6),
+        ("window", "bandpass", 1e-6),
+        ("series", "bandpass", 1e-6),
+        # the series variant re-integrates the float32-stored accelerations: their rounding accumulates over
+        # 1200 steps in rel_vel / rel_disp (the band-pass removes that slow drift again)
+        ("series", "none", 3e-5),
+    ],
+)
 def test_estimator_on_clean_data_module_gives_back_p(dm, span, filt, tol):
     est = LeastSquaresFit(span=span, filter=filt, dt=0.005)
     pred, true = est.predict_split(dm, "test", 0.0)
@@ -66,8 +70,9 @@ def test_window_span_equals_a_direct_fit_on_the_evaluation_windows(dm):
     for k in (1, 3):
         batch = dm.eval_batch("val", 0.02, windows=k)
         seat, v, d = (batch[key].numpy().astype(np.float64) for key in ("signals", "rel_vel", "rel_disp"))
-        per_window = np.stack([np.linalg.lstsq(np.stack([-v[i], -d[i]], axis=1), seat[i, 0], rcond=None)[0]
-                               for i in range(len(seat))])
+        per_window = np.stack(
+            [np.linalg.lstsq(np.stack([-v[i], -d[i]], axis=1), seat[i, 0], rcond=None)[0] for i in range(len(seat))]
+        )
         index = batch["index"].numpy()
         want = np.stack([per_window[index == row].mean(axis=0) for row in dm.rows("val")])
         pred, true = LeastSquaresFit(span="window").predict_split(dm, "val", 0.02, windows=k)
@@ -104,6 +109,7 @@ def test_one_parameter_fit_with_c3_and_k3_known(clean_recordings, dm):
     """unknown=m3: q = 1/m3 by least squares (numpy lstsq as the reference), p = q (C3, K3); exact on clean
     data, and under noise at least as close as the two-parameter band-pass fit on the same windows."""
     from hybrid_sysid.physics import QuarterCar
+
     car = QuarterCar()
     r = clean_recordings
     np.testing.assert_allclose(fit_p(r["seat"], r["rel_vel"], r["rel_disp"], car=(car.c3, car.k3)), r["p"], rtol=1e-6)

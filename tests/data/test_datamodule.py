@@ -28,7 +28,7 @@ def window_start(dm, row, seat_window):
     """Where in the recording this window was cut (exact float32 match)."""
     full = dm.dataset.seat_acc[row]
     n = len(seat_window)
-    starts = [s for s in range(len(full) - n + 1) if np.array_equal(full[s:s + n], seat_window)]
+    starts = [s for s in range(len(full) - n + 1) if np.array_equal(full[s : s + n], seat_window)]
     assert len(starts) == 1
     return starts[0]
 
@@ -42,8 +42,8 @@ def test_training_batches_are_windows_of_training_recordings(dm):
         for i, row in enumerate(batch["index"].numpy()):
             assert row in dm.split.train
             s = window_start(dm, row, batch["signals"][i, 0].numpy())
-            np.testing.assert_array_equal(batch["signals"][i, 1].numpy(), dm.dataset.body_acc[row, s:s + 100])
-            np.testing.assert_array_equal(batch["rel_vel"][i].numpy(), dm.dataset.rel_vel[row, s:s + 100])
+            np.testing.assert_array_equal(batch["signals"][i, 1].numpy(), dm.dataset.body_acc[row, s : s + 100])
+            np.testing.assert_array_equal(batch["rel_vel"][i].numpy(), dm.dataset.rel_vel[row, s : s + 100])
             np.testing.assert_allclose(batch["params"][i].numpy(), dm.dataset.params[row], rtol=1e-6)
             starts.append(s)
         seen.extend(batch["index"].tolist())

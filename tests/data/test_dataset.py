@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.data import DatasetSpec, generate_dataset, get_dataset, split_by_road
-from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data import cache as dataset_mod
+from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.physics import QuarterCar
 
 SMALL = DatasetSpec(n_roads=5, n_masses=4, n_steps=300, road_classes=("A", "C", "E"), seed=3)
@@ -69,8 +69,17 @@ def test_cache_loads_instead_of_simulating(tmp_path, monkeypatch, small):
         np.testing.assert_array_equal(getattr(second, name), getattr(first, name))
 
 
-@pytest.mark.parametrize("change", [dict(dt=0.004), dict(seed=9), dict(measurement="paper"), dict(n_waves=200),
-                                    dict(road_classes=("B",)), dict(car=QuarterCar(c3=600.0))])
+@pytest.mark.parametrize(
+    "change",
+    [
+        dict(dt=0.004),
+        dict(seed=9),
+        dict(measurement="paper"),
+        dict(n_waves=200),
+        dict(road_classes=("B",)),
+        dict(car=QuarterCar(c3=600.0)),
+    ],
+)
 def test_cache_key_changes_with_every_value_that_changes_the_data(change):
     assert DatasetSpec(**{**SMALL.__dict__, **change}).key() != SMALL.key()
 
@@ -98,7 +107,7 @@ def test_damaged_cache_is_regenerated_with_a_warning(tmp_path, small, damage):
             names = f.files
         assert "seat_acc" in names
         i = raw.index(small.seat_acc[3].tobytes()[:64])
-        path.write_bytes(raw[:i] + bytes([raw[i] ^ 0xFF]) + raw[i + 1:])
+        path.write_bytes(raw[:i] + bytes([raw[i] ^ 0xFF]) + raw[i + 1 :])
     else:
         path.write_bytes(b"not a cache file")
     with pytest.warns(RuntimeWarning, match="regenerating"):
@@ -127,9 +136,16 @@ print(float(ds.seat_acc.sum()))
 def test_concurrent_jobs_generate_a_dataset_once(tmp_path):
     import subprocess
     import sys
+
     counter = tmp_path / "count.txt"
-    procs = [subprocess.Popen([sys.executable, "-c", GENERATE_ONCE, str(tmp_path / "cache"), str(counter)],
-                              stdout=subprocess.PIPE, text=True) for _ in range(2)]
+    procs = [
+        subprocess.Popen(
+            [sys.executable, "-c", GENERATE_ONCE, str(tmp_path / "cache"), str(counter)],
+            stdout=subprocess.PIPE,
+            text=True,
+        )
+        for _ in range(2)
+    ]
     outs = [p.communicate(timeout=300)[0] for p in procs]
     assert [p.returncode for p in procs] == [0, 0]
     assert counter.read_text().splitlines() == ["generated"]
@@ -155,13 +171,16 @@ def test_bad_values_fail_before_anything_is_written(tmp_path, change, match):
     assert list(tmp_path.iterdir()) == []  # not even a lock file
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    (dict(window=301), r"data.window = 301 is not allowed: must lie in \[1, data.n_steps = 300\]"),
-    (dict(train_fraction=1.0), r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
-    (dict(train_fraction=0.2), r"data.n_roads = 5 is too few for data.train_fraction = 0.2"),
-    (dict(train_std=-0.01), r"noise std -0.01 is not allowed"),
-    (dict(batch_size=0), r"model.batch_size = 0 is not allowed"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        (dict(window=301), r"data.window = 301 is not allowed: must lie in \[1, data.n_steps = 300\]"),
+        (dict(train_fraction=1.0), r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
+        (dict(train_fraction=0.2), r"data.n_roads = 5 is too few for data.train_fraction = 0.2"),
+        (dict(train_std=-0.01), r"noise std -0.01 is not allowed"),
+        (dict(batch_size=0), r"model.batch_size = 0 is not allowed"),
+    ],
+)
 def test_bad_datamodule_values_fail_before_anything_is_written(tmp_path, kwargs, match):
     with pytest.raises(ValueError, match=match):
         QuarterCarDataModule(SMALL, cache_dir=str(tmp_path), **({"window": 100} | kwargs))

@@ -30,7 +30,7 @@ def starts_of(dm, batch):
     out = []
     for row, seat in zip(batch["index"].numpy(), batch["signals"][:, 0].numpy()):
         full = dm.dataset.seat_acc[row]
-        hits = [s for s in range(len(full) - len(seat) + 1) if np.array_equal(full[s:s + len(seat)], seat)]
+        hits = [s for s in range(len(full) - len(seat) + 1) if np.array_equal(full[s : s + len(seat)], seat)]
         assert len(hits) == 1
         out.append(hits[0])
     return np.array(out)
@@ -63,8 +63,8 @@ def test_k1_is_one_seeded_window_per_recording_with_the_noise_asked_for(dm, spli
     ds = dm.dataset
     for i, (row, s) in enumerate(zip(rows, starts)):
         for key, arr in (("rel_vel", ds.rel_vel), ("rel_disp", ds.rel_disp)):
-            np.testing.assert_array_equal(clean[key][i].numpy(), arr[row, s:s + 100])
-        np.testing.assert_array_equal(clean["signals"][i, 1].numpy(), ds.body_acc[row, s:s + 100])
+            np.testing.assert_array_equal(clean[key][i].numpy(), arr[row, s : s + 100])
+        np.testing.assert_array_equal(clean["signals"][i, 1].numpy(), ds.body_acc[row, s : s + 100])
     noise = (batch["signals"] - clean["signals"]).numpy().astype(np.float64)
     if std == 0:
         assert not noise.any()
@@ -78,8 +78,9 @@ def test_k1_is_one_seeded_window_per_recording_with_the_noise_asked_for(dm, spli
     v0 = extra_v[:, :1]
     np.testing.assert_allclose(extra_v, np.broadcast_to(v0, vel.shape), rtol=0, atol=1e-5 * np.abs(vel).max())
     extra_d = (batch["rel_disp"] - clean["rel_disp"]).numpy() - disp - SPEC.dt * np.arange(1, 101) * v0
-    np.testing.assert_allclose(extra_d, np.broadcast_to(extra_d[:, :1], disp.shape), rtol=0,
-                               atol=1e-5 * np.abs(disp).max())
+    np.testing.assert_allclose(
+        extra_d, np.broadcast_to(extra_d[:, :1], disp.shape), rtol=0, atol=1e-5 * np.abs(disp).max()
+    )
 
 
 def test_k_windows_are_distinct_reproducible_and_nested(dm):
@@ -123,8 +124,11 @@ def test_limit_keeps_the_first_recordings_windows(dm):
 
 @pytest.mark.parametrize("k", [0, -1, 302, 2.0, True])
 def test_bad_k_is_named(dm, k):
-    with pytest.raises(ValueError, match=r"evaluation.windows = .* is not allowed: a non-empty list of integers K "
-                                         r"in \[1, data.n_steps - data.window \+ 1 = 301\]"):
+    with pytest.raises(
+        ValueError,
+        match=r"evaluation.windows = .* is not allowed: a non-empty list of integers K "
+        r"in \[1, data.n_steps - data.window \+ 1 = 301\]",
+    ):
         dm.eval_batch("test", 0.0, windows=k)
 
 
@@ -141,8 +145,9 @@ def test_predictions_are_averaged_over_each_recordings_k_windows(dm):
         pred, true = model.predict_split(dm, "test", 0.02, windows=k)
         batch = dm.eval_batch("test", 0.02, windows=k)  # by hand, grouped by the batch's own recording index
         sig = batch["signals"].numpy().astype(np.float64)
-        per_window = pd.DataFrame({"row": batch["index"].numpy(), "a": np.abs(sig[:, 0]).mean(-1),
-                                   "b": np.sqrt((sig[:, 1] ** 2).mean(-1))})
+        per_window = pd.DataFrame(
+            {"row": batch["index"].numpy(), "a": np.abs(sig[:, 0]).mean(-1), "b": np.sqrt((sig[:, 1] ** 2).mean(-1))}
+        )
         want = per_window.groupby("row", sort=False)[["a", "b"]].mean().loc[dm.rows("test")].to_numpy()
         assert pred.shape == true.shape == (len(dm.rows("test")), 2)
         np.testing.assert_allclose(pred, want, rtol=1e-5)

@@ -3,7 +3,6 @@ band-passed signals of the seat equation that the filtered hybrid objective read
 
 import numpy as np
 import pytest
-import torch
 
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, start_state
@@ -56,15 +55,20 @@ def test_k_windows_take_their_start_state_from_the_recordings_noise_series():
     k = 8
     clean, noisy = dm.eval_batch("test", 0.0, windows=k), dm.eval_batch("test", 0.05, windows=k)
     dv = (noisy["rel_vel"] - clean["rel_vel"]).numpy().reshape(-1, k, 300)
-    starts = [[int(np.flatnonzero((dm.dataset.seat_acc[r] == s[0]))[0]) for s in
-               clean["signals"][i * k:(i + 1) * k, 0].numpy()] for i, r in enumerate(dm.rows("test"))]
+    starts = [
+        [
+            int(np.flatnonzero((dm.dataset.seat_acc[r] == s[0]))[0])
+            for s in clean["signals"][i * k : (i + 1) * k, 0].numpy()
+        ]
+        for i, r in enumerate(dm.rows("test"))
+    ]
     checked = 0
     for i, st in enumerate(starts):
         for a in range(k):
             for b in range(a + 1, k):
                 lag = st[b] - st[a]
                 if 0 < lag < 300:
-                    np.testing.assert_allclose(dv[i, a, lag:], dv[i, b, :300 - lag], atol=1e-5)
+                    np.testing.assert_allclose(dv[i, a, lag:], dv[i, b, : 300 - lag], atol=1e-5)
                     checked += 1
     assert checked > 0
 
@@ -74,8 +78,11 @@ def test_filtered_signals_are_the_band_pass_of_the_batchs_own_signals(integratio
     """Reference: numpy's FFT convolution (fir_valid) of the batch's full-window seat z'', rel_vel, rel_disp.
     The filter removes the states at the window's start, so both integrations give the same filtered signals."""
     dm = make(integration)
-    for batch in (dm.eval_batch("test", 0.0), dm.eval_batch("test", 0.03), next(iter(make(
-            integration, train_std=0.03).train_dataloader()))):
+    for batch in (
+        dm.eval_batch("test", 0.0),
+        dm.eval_batch("test", 0.03),
+        next(iter(make(integration, train_std=0.03).train_dataloader())),
+    ):
         sources = (batch["signals"][:, 0], batch["rel_vel"], batch["rel_disp"])
         for key, source in zip(("seat_f", "rel_vel_f", "rel_disp_f"), sources):
             want = fir_valid(source.numpy().astype(np.float64), FIR)
@@ -84,8 +91,12 @@ def test_filtered_signals_are_the_band_pass_of_the_batchs_own_signals(integratio
             np.testing.assert_allclose(got, want, rtol=0, atol=2e-4 * np.abs(want).max())
     other = make("window" if integration == "t0" else "t0").eval_batch("test", 0.03)
     for key in ("seat_f", "rel_vel_f", "rel_disp_f"):
-        np.testing.assert_allclose(other[key].numpy(), dm.eval_batch("test", 0.03)[key].numpy(), rtol=0,
-                                   atol=1e-4 * other[key].abs().max().item())
+        np.testing.assert_allclose(
+            other[key].numpy(),
+            dm.eval_batch("test", 0.03)[key].numpy(),
+            rtol=0,
+            atol=1e-4 * other[key].abs().max().item(),
+        )
 
 
 def test_window_integration_starts_every_window_from_zero():

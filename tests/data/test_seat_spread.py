@@ -4,8 +4,8 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.data import DatasetSpec
-from hybrid_sysid.data.dataset import generate_dataset
 from hybrid_sysid.data.cache import get_dataset
+from hybrid_sysid.data.dataset import generate_dataset
 from hybrid_sysid.physics import QuarterCar
 
 C3, K3 = 615.0, 98935.0  # the paper's seat (sec. 2.2)
@@ -21,8 +21,7 @@ def test_seat_constants_are_drawn_in_range_and_labels_follow(spread):
     assert np.all((spread.c3 >= 0.7 * C3) & (spread.c3 <= 1.3 * C3))
     assert np.all((spread.k3 >= 0.7 * K3) & (spread.k3 <= 1.3 * K3))
     assert np.ptp(spread.c3) > 0.4 * C3 and np.ptp(spread.k3) > 0.4 * K3  # they do spread over the range
-    np.testing.assert_allclose(spread.params, np.stack([spread.c3, spread.k3], axis=1) / spread.m3[:, None],
-                               rtol=1e-15)
+    np.testing.assert_allclose(spread.params, np.stack([spread.c3, spread.k3], axis=1) / spread.m3[:, None], rtol=1e-15)
     ratio = spread.params[:, 0] / spread.params[:, 1]  # C3 / K3: one number for the paper's data, not here
     assert np.ptp(ratio) > 0.5 * C3 / K3
 
@@ -49,8 +48,9 @@ def test_spread_decorrelates_p1_and_p2():
     wide = generate_dataset(DatasetSpec(seat_spread=0.3, n_roads=10, n_masses=200, n_steps=20))
     assert abs(np.corrcoef(wide.c3, wide.k3)[0, 1]) < 0.1
     assert np.corrcoef(wide.params.T)[0, 1] < 0.9
-    narrow = generate_dataset(DatasetSpec(seat_spread=0.3, m3_min=100, m3_max=110, n_roads=10, n_masses=200,
-                                          n_steps=20))
+    narrow = generate_dataset(
+        DatasetSpec(seat_spread=0.3, m3_min=100, m3_max=110, n_roads=10, n_masses=200, n_steps=20)
+    )
     assert np.corrcoef(narrow.params.T)[0, 1] < 0.5
 
 

@@ -32,8 +32,11 @@ def lstsq(y, v, d):
 def test_on_clean_consistent_data_the_filtered_residual_of_the_true_p_is_zero(dm):
     batch = dm.eval_batch("train", 0.0)
     true = batch["params"]
-    for obj in (HybridObjective(filter=BAND, dt=SPEC.dt), HybridObjective(filter=BAND, dt=SPEC.dt, weighting="eiv"),
-                CombinedObjective(p_scale=[8.0, 1200.0], labelled_weight=0, filter=BAND, dt=SPEC.dt)):
+    for obj in (
+        HybridObjective(filter=BAND, dt=SPEC.dt),
+        HybridObjective(filter=BAND, dt=SPEC.dt, weighting="eiv"),
+        CombinedObjective(p_scale=[8.0, 1200.0], labelled_weight=0, filter=BAND, dt=SPEC.dt),
+    ):
         assert obj(true, batch).item() < 1e-10  # normalised: float32 rounding of the stored signals
         assert obj(true * 1.01, batch).item() > 1e-6
 
@@ -66,7 +69,7 @@ def test_noise_gram_gives_the_variance_of_the_filtered_residual_of_pure_noise():
     for p1, p2 in ((8.0, 1200.0), (3.0, 500.0), (12.0, 2000.0)):
         want = np.var(y + p1 * v + p2 * d)
         q = np.array([1.0, p1, p2])
-        assert sigma ** 2 * q @ gram @ q == pytest.approx(want, rel=0.05)
+        assert sigma**2 * q @ gram @ q == pytest.approx(want, rel=0.05)
 
 
 def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
@@ -90,6 +93,7 @@ def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
 
     def loss(p):
         return obj(torch.tensor(p, dtype=torch.float64).expand(n, 2), f64).item()
+
     eiv = minimize(loss, plain, method="Nelder-Mead", options={"xatol": 1e-8, "fatol": 1e-16}).x
     bias_plain, bias_eiv = (plain - true) / true, (eiv - true) / true
     assert (np.abs(bias_plain) > 0.02).all()

@@ -14,11 +14,16 @@ def test_paper_cnn_layers_match_the_paper():
     window = 500
     length = window - 50 + 1 - 10 + 1
     expected = [
-        (100, 2, 50), (100,),
-        (100, 100, 10), (100,),
-        (100, 100 * length), (100,),
-        (10, 100), (10,),
-        (2, 10), (2,),
+        (100, 2, 50),
+        (100,),
+        (100, 100, 10),
+        (100,),
+        (100, 100 * length),
+        (100,),
+        (10, 100),
+        (10,),
+        (2, 10),
+        (2,),
     ]
     model = PaperCNN(P_SCALE, window=window)
     assert [tuple(p.shape) for p in model.parameters()] == expected
@@ -38,11 +43,14 @@ def test_paper_cnn_output_is_positive_and_scaled():
     assert torch.allclose(model(torch.randn(3, 2, 200)), torch.tensor([[P_SCALE[0], 2 * P_SCALE[1]]] * 3))
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"window": 40}, "window = 40"),
-    ({"p_scale": (1.0, -2.0)}, "p_scale"),
-    ({"activation": "gelu"}, "activation = 'gelu'.*tanh"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"window": 40}, "window = 40"),
+        ({"p_scale": (1.0, -2.0)}, "p_scale"),
+        ({"activation": "gelu"}, "activation = 'gelu'.*tanh"),
+    ],
+)
 def test_paper_cnn_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
         PaperCNN(**({"p_scale": P_SCALE} | kwargs))
@@ -97,16 +105,19 @@ def test_fast_cnn_halves_the_sequence_per_layer(downsample):
     assert lengths == expected
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"channels": 0}, "channels = 0"),
-    ({"downsample": "avg"}, "downsample = 'avg'"),
-    ({"n_layers": 1.5}, "n_layers = 1.5"),
-    ({"kernel_size": 4}, "kernel_size = 4.*odd"),
-    ({"margin": -0.1}, r"margin = -0.1.*\[0, 1\]"),
-    ({"p_min": (20.0, 495.0)}, "p_min"),
-    ({"in_channels": 3}, "in_channels = 3"),
-    ({"bn_momentum": 0.0}, r"bn_momentum = 0.0.*\(0, 1\]"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"channels": 0}, "channels = 0"),
+        ({"downsample": "avg"}, "downsample = 'avg'"),
+        ({"n_layers": 1.5}, "n_layers = 1.5"),
+        ({"kernel_size": 4}, "kernel_size = 4.*odd"),
+        ({"margin": -0.1}, r"margin = -0.1.*\[0, 1\]"),
+        ({"p_min": (20.0, 495.0)}, "p_min"),
+        ({"in_channels": 3}, "in_channels = 3"),
+        ({"bn_momentum": 0.0}, r"bn_momentum = 0.0.*\(0, 1\]"),
+    ],
+)
 def test_fast_cnn_rejects_bad_arguments(kwargs, match):
     with pytest.raises(ValueError, match=match):
         FastCNN(**({"p_min": P_MIN, "p_max": P_MAX} | kwargs))
@@ -122,8 +133,9 @@ def test_models_are_reproducible_from_the_seed():
     assert math.isfinite(outs[0][1].sum().item())
 
 
-@pytest.mark.parametrize("make", [lambda: FastCNN(P_MIN, P_MAX, channels=8), lambda: PaperCNN(P_SCALE, window=120)],
-                         ids=["fast", "paper"])
+@pytest.mark.parametrize(
+    "make", [lambda: FastCNN(P_MIN, P_MAX, channels=8), lambda: PaperCNN(P_SCALE, window=120)], ids=["fast", "paper"]
+)
 def test_models_run_under_deterministic_algorithms(make):
     was = torch.are_deterministic_algorithms_enabled()
     torch.use_deterministic_algorithms(True)  # raises on any op without a deterministic implementation

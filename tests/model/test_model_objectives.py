@@ -38,8 +38,9 @@ def test_hybrid_matches_a_hand_written_reference():
     z, rv, rd = rng.normal(size=(3, 4, 50))
     pred = np.abs(rng.normal(size=(4, 2))) * [8.0, 1000.0]
     ref_plain = np.mean([np.mean((z[i] + pred[i, 0] * rv[i] + pred[i, 1] * rd[i]) ** 2) for i in range(4)])
-    ref_norm = np.mean([np.mean((z[i] + pred[i, 0] * rv[i] + pred[i, 1] * rd[i]) ** 2) / np.mean(z[i] ** 2)
-                        for i in range(4)])
+    ref_norm = np.mean(
+        [np.mean((z[i] + pred[i, 0] * rv[i] + pred[i, 1] * rd[i]) ** 2) / np.mean(z[i] ** 2) for i in range(4)]
+    )
     t = lambda a: torch.tensor(a, dtype=torch.float64)  # noqa: E731
     batch = {"signals": t(np.stack([z, -z], axis=1)), "rel_vel": t(rv), "rel_disp": t(rd)}
     assert HybridObjective(normalize=False)(t(pred), batch).item() == pytest.approx(ref_plain, rel=1e-12)
@@ -56,8 +57,14 @@ def test_hybrid_normalisation_weighs_rough_and_smooth_roads_alike(consistent_bat
     assert plain(p, loud).item() == pytest.approx(256.0 * plain(p, consistent_batch).item(), rel=1e-5)
 
 
-@pytest.mark.parametrize("objective", [HybridObjective(), HybridObjective(normalize=False),
-                                       CombinedObjective(P_SCALE, labelled_weight=0.0, hybrid_weight=1.0)])
+@pytest.mark.parametrize(
+    "objective",
+    [
+        HybridObjective(),
+        HybridObjective(normalize=False),
+        CombinedObjective(P_SCALE, labelled_weight=0.0, hybrid_weight=1.0),
+    ],
+)
 def test_hybrid_never_reads_labels(consistent_batch, objective):
     def loss_and_grad(batch):
         pred = (1.1 * consistent_batch["params"]).requires_grad_()
@@ -66,8 +73,10 @@ def test_hybrid_never_reads_labels(consistent_batch, objective):
         return loss.detach(), pred.grad
 
     ref_loss, ref_grad = loss_and_grad(consistent_batch)
-    garbage = [torch.full_like(consistent_batch["params"], float("nan")),
-               torch.randn_like(consistent_batch["params"]) * 1e6]
+    garbage = [
+        torch.full_like(consistent_batch["params"], float("nan")),
+        torch.randn_like(consistent_batch["params"]) * 1e6,
+    ]
     for params in garbage:
         loss, grad = loss_and_grad({**consistent_batch, "params": params})
         assert torch.equal(loss, ref_loss) and torch.equal(grad, ref_grad)
@@ -103,23 +112,29 @@ def test_label_use_is_declared_for_model_selection():
     assert CombinedObjective(P_SCALE, labelled_weight=0.5, hybrid_weight=1.0).uses_labels is True
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"labelled_weight": 0.0, "hybrid_weight": 0.0}, "labelled_weight and hybrid_weight must not both be zero"),
-    ({"labelled_weight": -1.0}, "labelled_weight = -1.0.*>= 0"),
-    ({"hybrid_weight": -0.5}, "hybrid_weight = -0.5.*>= 0"),
-    ({"hybrid_weight": float("nan")}, "hybrid_weight = nan"),
-    ({"norm": "l3"}, "norm = 'l3'.*l1, l2"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"labelled_weight": 0.0, "hybrid_weight": 0.0}, "labelled_weight and hybrid_weight must not both be zero"),
+        ({"labelled_weight": -1.0}, "labelled_weight = -1.0.*>= 0"),
+        ({"hybrid_weight": -0.5}, "hybrid_weight = -0.5.*>= 0"),
+        ({"hybrid_weight": float("nan")}, "hybrid_weight = nan"),
+        ({"norm": "l3"}, "norm = 'l3'.*l1, l2"),
+    ],
+)
 def test_combined_rejects_bad_weights(kwargs, match):
     with pytest.raises(ValueError, match=match):
         CombinedObjective(P_SCALE, **kwargs)
 
 
-@pytest.mark.parametrize("make, match", [
-    (lambda: LabelledObjective(P_SCALE, norm="huber"), "norm = 'huber'"),
-    (lambda: LabelledObjective(p_scale=(0.0, 1.0)), "p_scale"),
-    (lambda: HybridObjective(eps=-1.0), "eps = -1.0"),
-])
+@pytest.mark.parametrize(
+    "make, match",
+    [
+        (lambda: LabelledObjective(P_SCALE, norm="huber"), "norm = 'huber'"),
+        (lambda: LabelledObjective(p_scale=(0.0, 1.0)), "p_scale"),
+        (lambda: HybridObjective(eps=-1.0), "eps = -1.0"),
+    ],
+)
 def test_objectives_reject_bad_arguments(make, match):
     with pytest.raises(ValueError, match=match):
         make()

@@ -22,20 +22,31 @@ STEPS = 6
 
 @pytest.fixture(scope="module")
 def batches(batch_factory):
-    return [batch_factory(list("ACE"), [60 + 20 * i, 120, 190 - 10 * i], n_steps=800, start=100 + 30 * i, seed=i)
-            for i in range(STEPS)]
+    return [
+        batch_factory(list("ACE"), [60 + 20 * i, 120, 190 - 10 * i], n_steps=800, start=100 + 30 * i, seed=i)
+        for i in range(STEPS)
+    ]
 
 
 @pytest.mark.parametrize("objective", [lambda: LabelledObjective(P_SCALE), HybridObjective], ids=["labelled", "hybrid"])
 def test_trainer_steps_equal_a_plain_loop(batches, objective, tmp_path):
     torch.manual_seed(0)
-    model = IdentificationModule(FastCNN(P_MIN, P_MAX, channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle",
-                               max_steps=STEPS)
+    model = IdentificationModule(
+        FastCNN(P_MIN, P_MAX, channels=8, n_layers=2), objective(), lr=3e-3, schedule="onecycle", max_steps=STEPS
+    )
     plain = copy.deepcopy(model)
 
-    trainer = L.Trainer(max_steps=STEPS, accelerator="cpu", devices=1, logger=False, enable_checkpointing=False,
-                        enable_progress_bar=False, enable_model_summary=False, limit_val_batches=0,
-                        default_root_dir=tmp_path)
+    trainer = L.Trainer(
+        max_steps=STEPS,
+        accelerator="cpu",
+        devices=1,
+        logger=False,
+        enable_checkpointing=False,
+        enable_progress_bar=False,
+        enable_model_summary=False,
+        limit_val_batches=0,
+        default_root_dir=tmp_path,
+    )
     trainer.fit(model, train_dataloaders=torch.utils.data.DataLoader(batches, batch_size=None))
     assert trainer.global_step == STEPS
 

@@ -5,8 +5,16 @@ import pytest
 from scipy.integrate import solve_ivp
 from scipy.linalg import expm as scipy_expm
 
-from hybrid_sysid.physics import (QuarterCar, continuous_recordings, expm, integrate_trapezoid, relative_states,
-                                  road_amplitudes, road_phases, wave_numbers)
+from hybrid_sysid.physics import (
+    QuarterCar,
+    continuous_recordings,
+    expm,
+    integrate_trapezoid,
+    relative_states,
+    road_amplitudes,
+    road_phases,
+    wave_numbers,
+)
 
 
 def test_expm_equals_scipys():
@@ -16,8 +24,9 @@ def test_expm_equals_scipys():
         np.testing.assert_allclose(got, scipy_expm(ref), rtol=1e-12, atol=1e-13)
 
 
-@pytest.mark.parametrize("m3, c3, k3, road_class", [(50.0, 615.0, 98935.0, "E"), (137.0, 700.0, 80000.0, "A"),
-                                                    (200.0, 615.0, 98935.0, "C")])
+@pytest.mark.parametrize(
+    "m3, c3, k3, road_class", [(50.0, 615.0, 98935.0, "E"), (137.0, 700.0, 80000.0, "A"), (200.0, 615.0, 98935.0, "C")]
+)
 def test_continuous_recording_agrees_with_solve_ivp(m3, c3, k3, road_class):
     dt, n_steps, speed, n_waves = 0.005, 400, 15.0, 300
     car = QuarterCar(m1=130.5, k2=208839.4)  # any car: not only the default one
@@ -46,7 +55,7 @@ def test_trapezoid_rule_is_exact_on_a_quadratic_and_second_order_on_a_sine():
     t = dt * np.arange(200)
     vel, pos = integrate_trapezoid(np.ones_like(t), dt)  # a = 1 from rest: v = t, x = t^2 / 2 (trapezoid exact)
     np.testing.assert_allclose(vel, t, atol=1e-12)
-    np.testing.assert_allclose(pos, t ** 2 / 2, rtol=0, atol=1e-4 * dt)  # x integrates a linear v: exact too
+    np.testing.assert_allclose(pos, t**2 / 2, rtol=0, atol=1e-4 * dt)  # x integrates a linear v: exact too
     errors = []
     for h in (0.01, 0.005):
         tt = h * np.arange(int(2.0 / h) + 1)
@@ -63,4 +72,4 @@ def test_continuous_seat_equation_holds_to_the_trapezoid_error():
     p1, p2 = QuarterCar().parameters(90.0)
     rel_vel, rel_disp = relative_states(seat, body, dt, "continuous")
     residual = seat + p1 * rel_vel + p2 * rel_disp
-    assert np.sqrt(np.mean(residual ** 2)) < 0.02 * np.sqrt(np.mean(seat ** 2))
+    assert np.sqrt(np.mean(residual**2)) < 0.02 * np.sqrt(np.mean(seat**2))

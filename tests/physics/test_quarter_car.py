@@ -13,7 +13,7 @@ def eq7_to_9(state, m3, r=0.0, c=CAR):
     """The paper's eq. 7-9 for the state (z', y', x', z, y, x)."""
     zd, yd, xd, z, y, x = state
     zdd = -c.c3 / m3 * (zd - yd) - c.k3 / m3 * (z - y)
-    ydd = (-c.c3 / c.m2 * (yd - zd) - c.c2 / c.m2 * (yd - xd) - c.k3 / c.m2 * (y - z) - c.k2 / c.m2 * (y - x))
+    ydd = -c.c3 / c.m2 * (yd - zd) - c.c2 / c.m2 * (yd - xd) - c.k3 / c.m2 * (y - z) - c.k2 / c.m2 * (y - x)
     xdd = -c.c2 / c.m1 * (xd - yd) - c.k2 / c.m1 * (x - y) - c.k1 / c.m1 * (x - r)
     return np.array([zdd, ydd, xdd, zd, yd, xd])
 
@@ -29,8 +29,14 @@ def test_system_matrix_is_eq7_to_9():
 def eq11(u, v, w, x, y, z, r, m3, h, c=CAR):
     """The paper's eq. 11 as printed: u, then v with u_{k+1}, then w with v_{k+1}, then the positions."""
     u1 = u + h * (c.c2 / c.m1 * v - c.c2 / c.m1 * u + c.k2 / c.m1 * y - (c.k1 + c.k2) / c.m1 * x + c.k1 / c.m1 * r)
-    v1 = v + h * (c.c3 / c.m2 * w - (c.c2 + c.c3) / c.m2 * v + c.c2 / c.m2 * u1 + c.k3 / c.m2 * z
-                  - (c.k2 + c.k3) / c.m2 * y + c.k2 / c.m2 * x)
+    v1 = v + h * (
+        c.c3 / c.m2 * w
+        - (c.c2 + c.c3) / c.m2 * v
+        + c.c2 / c.m2 * u1
+        + c.k3 / c.m2 * z
+        - (c.k2 + c.k3) / c.m2 * y
+        + c.k2 / c.m2 * x
+    )
     w1 = w + h * (-c.c3 / m3 * w + c.c3 / m3 * v1 - c.k3 / m3 * z + c.k3 / m3 * y)
     return u1, v1, w1, x + h * u1, y + h * v1, z + h * w1
 
@@ -83,12 +89,13 @@ def test_converges_to_solve_ivp_at_first_order(m3):
     for dt in (4e-3, 2e-3, 1e-3, 5e-4):
         n = int(round(t_end / dt))
         t = dt * np.arange(n)
-        seat, body, states = simulate(smooth_road(t)[None], np.array([m3]), dt, measurement="paper",
-                                      return_states=True)
+        seat, body, states = simulate(smooth_road(t)[None], np.array([m3]), dt, measurement="paper", return_states=True)
         exact = ref(t)  # rows: z', y', x', z, y, x
-        err = max(np.abs(states["z"][0] - exact[3]).max() / np.abs(exact[3]).max(),
-                  np.abs(states["y"][0] - exact[4]).max() / np.abs(exact[4]).max(),
-                  np.abs(seat[0] - eq7_to_9(exact, m3)[0]).max() / np.abs(eq7_to_9(exact, m3)[0]).max())
+        err = max(
+            np.abs(states["z"][0] - exact[3]).max() / np.abs(exact[3]).max(),
+            np.abs(states["y"][0] - exact[4]).max() / np.abs(exact[4]).max(),
+            np.abs(seat[0] - eq7_to_9(exact, m3)[0]).max() / np.abs(eq7_to_9(exact, m3)[0]).max(),
+        )
         errors.append(err)
     ratios = np.array(errors[:-1]) / np.array(errors[1:])
     assert errors[-1] < 0.02

@@ -1,9 +1,10 @@
 from pathlib import Path
 
 import pytest
-from evaluation_fakes import make_sweep
 
 from hybrid_sysid.report import plotting, run_figures, sweep_figures
+
+from evaluation_fakes import make_sweep
 
 
 @pytest.fixture(scope="module")

@@ -5,11 +5,12 @@ below and just above it; the windows (K) level; the LaTeX form."""
 import numpy as np
 import pandas as pd
 import pytest
-from evaluation_fakes import known_results, make_run, parse_markdown, plain
 
 from hybrid_sysid.report.collect import collect
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.tables import compare_marks, summary_table, to_latex, to_markdown
+
+from evaluation_fakes import known_results, make_run, parse_markdown, plain
 
 EPS = 1e-6  # relative distance of a gap from the spread: far above rounding, far below any real difference
 LAB = np.array([0.10, 0.12, 0.14])  # mean 0.12, sample std 0.02
@@ -17,8 +18,11 @@ SPREAD = 0.02 + 0.01  # LAB's std + the std of the +-0.01 offsets below
 OFF = np.array([-0.01, 0.0, 0.01])  # sample std 0.01
 # (objective -> seed values) per column; test split
 COLUMNS = {
-    (0.0, "p1"): {"labelled": LAB, "hybrid": 0.12 + SPREAD * (1 + EPS) + OFF,  # just above: worse
-                  "combined": 0.12 + SPREAD * (1 - EPS) + OFF},  # just below: within
+    (0.0, "p1"): {
+        "labelled": LAB,
+        "hybrid": 0.12 + SPREAD * (1 + EPS) + OFF,  # just above: worse
+        "combined": 0.12 + SPREAD * (1 - EPS) + OFF,
+    },  # just below: within
     (0.0, "p2"): {"labelled": LAB + 0.5, "hybrid": LAB * 0.5, "combined": LAB * 0.5 + 0.001},
     (0.01, "p1"): {"labelled": 0.27 + 3 * OFF, "hybrid": 0.16 + OFF, "combined": 0.2 + OFF},
     (0.01, "p2"): {"labelled": LAB, "hybrid": LAB, "combined": LAB + 1.0},  # a tie: the first row is best
@@ -37,8 +41,12 @@ def known(tmp_path):
         for seed in range(3):
             vals = _values(objective, seed)
             vals[("train", 0.0, "p1")] = vals[("train", 0.0, "p2")] = 0.05
-            make_run(tmp_path / "sw" / str(job), [f"objective={objective}", f"seed={seed}"], seed,
-                     results=known_results(vals))
+            make_run(
+                tmp_path / "sw" / str(job),
+                [f"objective={objective}", f"seed={seed}"],
+                seed,
+                results=known_results(vals),
+            )
             job += 1
     return tmp_path / "sw"
 
@@ -56,8 +64,10 @@ def _by_hand(values: dict) -> dict:
     mean = {o: np.mean(v) for o, v in values.items()}
     std = {o: np.std(v, ddof=1) for o, v in values.items()}
     best = min(OBJECTIVES, key=lambda o: mean[o])  # table order breaks ties
-    return {o: "best" if o == best else "worse" if abs(mean[o] - mean[best]) > std[o] + std[best] else "within"
-            for o in OBJECTIVES}
+    return {
+        o: "best" if o == best else "worse" if abs(mean[o] - mean[best]) > std[o] + std[best] else "within"
+        for o in OBJECTIVES
+    }
 
 
 def test_means_stds_and_marks_match_a_hand_computation(known):
@@ -93,11 +103,15 @@ def test_markdown_bolds_the_best_daggers_beyond_spread_and_states_the_rule_once(
 
 
 def test_fewer_than_three_seeds_warns_and_a_single_seed_is_never_daggered(tmp_path):
-    for job, (objective, seeds) in enumerate([("labelled", [0, 1]), ("hybrid", [0])]):
+    for objective, seeds in [("labelled", [0, 1]), ("hybrid", [0])]:
         for seed in seeds:
             value = {"labelled": [0.1, 0.11], "hybrid": [0.9]}[objective][seed]
-            make_run(tmp_path / f"{objective}{seed}", [f"objective={objective}", f"seed={seed}"], seed,
-                     results=known_results({("test", 0.0, "p1"): value}))
+            make_run(
+                tmp_path / f"{objective}{seed}",
+                [f"objective={objective}", f"seed={seed}"],
+                seed,
+                results=known_results({("test", 0.0, "p1"): value}),
+            )
     table = summary_table(collect(tmp_path))
     assert compare_marks(table)[(0.0, "p1")].to_dict() == {"labelled": "best", "hybrid": "unknown"}
     text = to_markdown(table)
@@ -113,15 +127,27 @@ def test_groups_are_rows_differing_only_in_the_compared_key(tmp_path):
     values = {("labelled", "A"): 0.10, ("hybrid", "A"): 0.20, ("labelled", "E"): 0.40, ("hybrid", "E"): 0.30}
     for (objective, road), v in values.items():
         for seed in range(3):
-            make_run(tmp_path / f"{objective}{road}{seed}", [f"objective={objective}", f"road={road}",
-                     f"seed={seed}"], seed, results=known_results({("test", 0.0, "p1"): v + 0.001 * seed}))
+            make_run(
+                tmp_path / f"{objective}{road}{seed}",
+                [f"objective={objective}", f"road={road}", f"seed={seed}"],
+                seed,
+                results=known_results({("test", 0.0, "p1"): v + 0.001 * seed}),
+            )
     table = summary_table(collect(tmp_path))
     by_objective = compare_marks(table)[(0.0, "p1")].to_dict()
-    assert by_objective == {("hybrid", "A"): "worse", ("labelled", "A"): "best",
-                            ("hybrid", "E"): "best", ("labelled", "E"): "worse"}
+    assert by_objective == {
+        ("hybrid", "A"): "worse",
+        ("labelled", "A"): "best",
+        ("hybrid", "E"): "best",
+        ("labelled", "E"): "worse",
+    }
     by_road = compare_marks(table, compare="road")[(0.0, "p1")].to_dict()
-    assert by_road == {("hybrid", "A"): "best", ("labelled", "A"): "best",
-                       ("hybrid", "E"): "worse", ("labelled", "E"): "worse"}
+    assert by_road == {
+        ("hybrid", "A"): "best",
+        ("labelled", "A"): "best",
+        ("hybrid", "E"): "worse",
+        ("labelled", "E"): "worse",
+    }
     assert "`road`" in to_markdown(table, compare="road")
     with pytest.raises(ValueError, match="compare='seed' is not a row key"):
         compare_marks(table, compare="seed")
@@ -130,11 +156,20 @@ def test_groups_are_rows_differing_only_in_the_compared_key(tmp_path):
 def test_windows_column_and_k_level_only_when_several_k(tmp_path):
     # old records (no windows field) and new ones with K = 1 and K = 8
     for seed in range(2):
-        make_run(tmp_path / "old" / str(seed), ["objective=labelled", f"seed={seed}"], seed,
-                 results=known_results({("test", 0.0, "p1"): 0.1 + seed / 100}))
-        make_run(tmp_path / "new" / str(seed), ["objective=hybrid", f"seed={seed}"], seed,
-                 results=known_results({("test", 0.0, 1, "p1"): 0.2 + seed / 100,
-                                        ("test", 0.0, 8, "p1"): 0.05 + seed / 100}))
+        make_run(
+            tmp_path / "old" / str(seed),
+            ["objective=labelled", f"seed={seed}"],
+            seed,
+            results=known_results({("test", 0.0, "p1"): 0.1 + seed / 100}),
+        )
+        make_run(
+            tmp_path / "new" / str(seed),
+            ["objective=hybrid", f"seed={seed}"],
+            seed,
+            results=known_results(
+                {("test", 0.0, 1, "p1"): 0.2 + seed / 100, ("test", 0.0, 8, "p1"): 0.05 + seed / 100}
+            ),
+        )
     df = collect(tmp_path)
     assert df.windows.tolist().count(1) == 4 and df.windows.tolist().count(8) == 2
     write_summary(tmp_path / "out", paths=[tmp_path], figures=False)
@@ -149,15 +184,23 @@ def test_windows_column_and_k_level_only_when_several_k(tmp_path):
     marks = compare_marks(table)[(0.0, "p1")].to_dict()
     assert marks == {("hybrid", 1): "worse", ("hybrid", 8): "", ("labelled", 1): "best", ("labelled", 8): ""}
     rows = parse_markdown(to_markdown(table))
-    assert [(r["objective"], r["K"]) for r in rows] == [("hybrid", "1"), ("hybrid", "8"), ("labelled", "1"),
-                                                       ("labelled", "8")]
+    assert [(r["objective"], r["K"]) for r in rows] == [
+        ("hybrid", "1"),
+        ("hybrid", "8"),
+        ("labelled", "1"),
+        ("labelled", "8"),
+    ]
 
 
 def test_a_single_k_changes_nothing_visible_but_is_named(tmp_path):
     for seed in range(2):
         for objective in ("labelled", "hybrid"):
-            make_run(tmp_path / f"{objective}{seed}", [f"objective={objective}", f"seed={seed}"], seed,
-                     results=known_results({("test", 0.0, 8, "p1"): 0.1 + seed / 100}))
+            make_run(
+                tmp_path / f"{objective}{seed}",
+                [f"objective={objective}", f"seed={seed}"],
+                seed,
+                results=known_results({("test", 0.0, 8, "p1"): 0.1 + seed / 100}),
+            )
     df, table = write_summary(tmp_path, figures=False)
     assert list(table.index.names) == ["objective"]
     md = (tmp_path / "summary.md").read_text()

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from evaluation_fakes import NOISES, OBJECTIVES, PARAMS, known_results, make_run
 from matplotlib.colors import to_rgba
 
 from hybrid_sysid.report.collect import load_runs
@@ -18,6 +17,8 @@ from hybrid_sysid.report.run_figures import write_run_figures
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.sweep_figures import tuning_figure
 from hybrid_sysid.report.tables import summary_table
+
+from evaluation_fakes import NOISES, OBJECTIVES, PARAMS, known_results, make_run
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -119,9 +120,20 @@ def fake_predictions(rng) -> pd.DataFrame:
     for split, std, k in evals:
         true = truth[split]
         pred = true * (1 + rng.normal(0.0, 0.5 if split == "train" else 0.03 * (1 + 10 * std) / k, size=true.shape))
-        frames.append(pd.DataFrame({"split": split, "noise_std": std, "windows": k, "recording": np.arange(N_REC),
-                                    "p1_true": true[:, 0], "p1_pred": pred[:, 0], "p2_true": true[:, 1],
-                                    "p2_pred": pred[:, 1]}))
+        frames.append(
+            pd.DataFrame(
+                {
+                    "split": split,
+                    "noise_std": std,
+                    "windows": k,
+                    "recording": np.arange(N_REC),
+                    "p1_true": true[:, 0],
+                    "p1_pred": pred[:, 0],
+                    "p2_true": true[:, 1],
+                    "p2_pred": pred[:, 1],
+                }
+            )
+        )
     return pd.concat(frames, ignore_index=True)
 
 
@@ -175,8 +187,9 @@ def test_run_figures_show_the_test_predictions_and_the_learning_curves(tmp_path,
         assert len(ax.lines) == groups.ngroups == 1 + len(NOISES)  # train at noise 0, test at every level
         for line in ax.lines:
             split, noise = line.get_label().split(", noise ")
-            expected = curves[(curves.split == split) & np.isclose(curves.noise_std, float(noise))
-                              & (curves.parameter == param)].sort_values("step")
+            expected = curves[
+                (curves.split == split) & np.isclose(curves.noise_std, float(noise)) & (curves.parameter == param)
+            ].sort_values("step")
             np.testing.assert_array_equal(line.get_xdata(), expected.step.to_numpy())
             np.testing.assert_array_equal(line.get_ydata(), expected.mean_rel_dev.to_numpy())
 
@@ -189,8 +202,12 @@ def test_tuning_figure_one_line_per_objective_and_tuning_at_the_chosen_k(tmp_pat
             for seed in (0, 1, 2):
                 mine = {("test", n, k, p): rng.uniform(0.01, 0.4) for n in LEVELS for k in KS for p in PARAMS}
                 values.update({(objective, tuning, seed, n, k, p): v for (_, n, k, p), v in mine.items()})
-                make_run(tmp_path / "sweep" / str(job), [f"objective={objective}", f"tuning={tuning}", f"seed={seed}"],
-                         seed, results=known_results(mine))
+                make_run(
+                    tmp_path / "sweep" / str(job),
+                    [f"objective={objective}", f"tuning={tuning}", f"seed={seed}"],
+                    seed,
+                    results=known_results(mine),
+                )
                 job += 1
     _, df = load_runs(tmp_path / "sweep")
     tuning_figure(summary_table(df), tmp_path / "tuning.png", k=4)

@@ -3,10 +3,11 @@ called here on per-recording deviations computed by hand from the runs' predicti
 
 import numpy as np
 import pandas as pd
-from evaluation_fakes import known_results, make_run, parse_markdown
 from scipy.stats import wilcoxon
 
 from hybrid_sysid.report.summary import write_summary
+
+from evaluation_fakes import known_results, make_run, parse_markdown
 
 N = 60  # test recordings, shared by every run
 OBJECTIVES = ["combined", "hybrid", "labelled"]
@@ -31,13 +32,27 @@ def make_sweep(root):
     for job, (objective, seed) in enumerate((o, s) for o in OBJECTIVES for s in range(3)):
         dev = relative_deviations(objective, seed, rng)
         devs[objective, seed] = dev
-        run = make_run(root / str(job), [f"objective={objective}", f"seed={seed}"], seed,
-                       results=known_results({("test", 0.0, "p1"): dev[:, 0].mean(),
-                                              ("test", 0.0, "p2"): dev[:, 1].mean()}))
+        run = make_run(
+            root / str(job),
+            [f"objective={objective}", f"seed={seed}"],
+            seed,
+            results=known_results({("test", 0.0, "p1"): dev[:, 0].mean(), ("test", 0.0, "p2"): dev[:, 1].mean()}),
+        )
         pred = true * (1 + dev * np.where(np.arange(N)[:, None] % 2, 1, -1))  # over- and under-estimates
-        pd.DataFrame({"split": "test", "noise_std": 0.0, "windows": 1, "recording": np.arange(N) + 100,
-                      "road_class": "A", "m3": 80.0, "p1_true": true[:, 0], "p1_pred": pred[:, 0],
-                      "p2_true": true[:, 1], "p2_pred": pred[:, 1]}).to_csv(run / "predictions.csv", index=False)
+        pd.DataFrame(
+            {
+                "split": "test",
+                "noise_std": 0.0,
+                "windows": 1,
+                "recording": np.arange(N) + 100,
+                "road_class": "A",
+                "m3": 80.0,
+                "p1_true": true[:, 0],
+                "p1_pred": pred[:, 0],
+                "p2_true": true[:, 1],
+                "p2_pred": pred[:, 1],
+            }
+        ).to_csv(run / "predictions.csv", index=False)
     return devs
 
 

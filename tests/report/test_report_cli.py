@@ -4,9 +4,10 @@ import matplotlib.image as mpimg
 import numpy as np
 import pandas as pd
 import pytest
-from evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
 
 from hybrid_sysid.cli.report import main
+
+from evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -41,7 +42,11 @@ def test_report_merges_sweeps_into_report_dir_and_returns_0(tmp_path, monkeypatc
     assert sorted(df.run.unique()) == sorted(f"{s}/{j}" for s in "ab" for j in range(4))  # no name clash
     rows = parse_markdown(capsys.readouterr().out)
     assert [(r["objective"], r["road"], r["seeds"]) for r in rows] == [
-        ("hybrid", "(default)", "2"), ("hybrid", "C", "2"), ("labelled", "(default)", "2"), ("labelled", "C", "2")]
+        ("hybrid", "(default)", "2"),
+        ("hybrid", "C", "2"),
+        ("labelled", "(default)", "2"),
+        ("labelled", "C", "2"),
+    ]
     assert (tmp_path / "report" / "figures" / "robustness.png").is_file()
 
 

@@ -5,27 +5,42 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
 from omegaconf import OmegaConf
 
-from hybrid_sysid.report.paper import constant_guess, reproduction_markdown, write_reproduction
 from hybrid_sysid.cli.report import main
+from hybrid_sysid.report.paper import constant_guess, reproduction_markdown, write_reproduction
 
-CONFIG = {"data": {"n_roads": 100, "n_masses": 100, "n_steps": 6000, "dt": 0.001, "speed": 15.0, "window": 500,
-                   "measurement": "consistent", "train_fraction": 0.8, "val_fraction": 0.125, "m3_min": 50,
-                   "m3_max": 200},
-          "noise": {"eval_std": [0.0, 0.003, 0.01], "train_std": 0.0},
-          "model": {"net": {"_target_": "hybrid_sysid.model.networks.PaperCNN"}, "batch_size": 100,
-                    "optim": {"name": "adam", "lr": 0.001, "schedule": "constant"}},
-          "trainer": {"max_steps": 2000}}
+from evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
+
+CONFIG = {
+    "data": {
+        "n_roads": 100,
+        "n_masses": 100,
+        "n_steps": 6000,
+        "dt": 0.001,
+        "speed": 15.0,
+        "window": 500,
+        "measurement": "consistent",
+        "train_fraction": 0.8,
+        "val_fraction": 0.125,
+        "m3_min": 50,
+        "m3_max": 200,
+    },
+    "noise": {"eval_std": [0.0, 0.003, 0.01], "train_std": 0.0},
+    "model": {
+        "net": {"_target_": "hybrid_sysid.model.networks.PaperCNN"},
+        "batch_size": 100,
+        "optim": {"name": "adam", "lr": 0.001, "schedule": "constant"},
+    },
+    "trainer": {"max_steps": 2000},
+}
 SEEDS = [0, 1, 2]
 
 
 def _value(objective, split, noise, p, seed):
     """A distinct known number per cell and seed."""
     base = {"labelled": 0.05, "hybrid": 0.08, "combined": 0.06}[objective]
-    return base + {"train": 0.0, "val": 0.001, "test": 0.002}[split] + 3 * noise + (p == "p2") * 0.01 \
-        + 0.004 * seed
+    return base + {"train": 0.0, "val": 0.001, "test": 0.002}[split] + 3 * noise + (p == "p2") * 0.01 + 0.004 * seed
 
 
 def _sigma(objective, seed):
@@ -36,18 +51,25 @@ def _make(sweep: Path, objectives=("labelled", "hybrid"), seeds=SEEDS, value=_va
     job = 0
     for objective in objectives:
         for seed in seeds:
-            cells = {(s, n, p): value(objective, s, n, p, seed) for s, n in
-                     [("train", 0.0), ("val", 0.0), ("test", 0.0), ("test", 0.003), ("test", 0.01)]
-                     for p in ("p1", "p2")}
-            make_run(sweep / str(job), [f"objective={objective}", f"seed={seed}", "experiment=paper"], seed,
-                     results=known_results(cells, n=2000, std_rel_dev=_sigma(objective, seed)),
-                     config=CONFIG, steps=2000)
+            cells = {
+                (s, n, p): value(objective, s, n, p, seed)
+                for s, n in [("train", 0.0), ("val", 0.0), ("test", 0.0), ("test", 0.003), ("test", 0.01)]
+                for p in ("p1", "p2")
+            }
+            make_run(
+                sweep / str(job),
+                [f"objective={objective}", f"seed={seed}", "experiment=paper"],
+                seed,
+                results=known_results(cells, n=2000, std_rel_dev=_sigma(objective, seed)),
+                config=CONFIG,
+                steps=2000,
+            )
             job += 1
     return sweep
 
 
 def _table(text: str) -> list[dict]:
-    return parse_markdown(text[text.index("## Mean relative deviation"):])
+    return parse_markdown(text[text.index("## Mean relative deviation") :])
 
 
 def test_rows_and_placement_of_paper_and_our_figures(tmp_path):
@@ -55,8 +77,10 @@ def test_rows_and_placement_of_paper_and_our_figures(tmp_path):
     rows = _table(reproduction_markdown(sweep))
     # the paper's splits and noise levels only (no 0.003, no val, no noisy training row); paper objectives first
     assert [(r["split"], r["noise std"], r["objective"]) for r in rows] == [
-        (s, n, o) for s, n in [("train", "0"), ("test", "0"), ("test", "0.01")]
-        for o in ("labelled", "hybrid", "combined")]
+        (s, n, o)
+        for s, n in [("train", "0"), ("test", "0"), ("test", "0.01")]
+        for o in ("labelled", "hybrid", "combined")
+    ]
     for r in rows:
         noise = float(r["noise std"])
         for p in ("p1", "p2"):
@@ -84,7 +108,7 @@ def test_rows_and_placement_of_paper_and_our_figures(tmp_path):
 
 def test_protocol_header_reads_the_run_configs(tmp_path):
     text = reproduction_markdown(_make(tmp_path / "sw"))
-    header = {r[""]: (r["paper"], r["ours"]) for r in parse_markdown(text[text.index("## Protocol"):])}
+    header = {r[""]: (r["paper"], r["ours"]) for r in parse_markdown(text[text.index("## Protocol") :])}
     assert header["steps"] == ("500,000 (sec. 3.1-3.3, figure captions)", "2000")
     assert header["dt"][1] == "1 ms" and header["dt"][0].startswith("not stated")
     assert header["data"][1].startswith("100 roads x 100 masses x 6000 steps")
@@ -135,7 +159,7 @@ def test_cli_results_page_one_section_per_sweep_with_figures(tmp_path, capsys):
         assert f"](figures/{name}.png)" in text
         assert (page.parent / "figures" / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
     assert "Failed jobs:" in text and "RuntimeError: loss is nan" in text
-    section = text[text.index("## experiment=paper"):]
+    section = text[text.index("## experiment=paper") :]
     rows = parse_markdown(section)
     assert [r["objective"] for r in rows] == ["hybrid", "labelled"] and rows[0]["seeds"] == "3"
     mean = np.mean([_value("labelled", "test", 0.0, "p1", s) for s in SEEDS])
@@ -187,7 +211,8 @@ def test_paper_experiment_asks_for_the_reproduction_within_a_cpu_budget():
     assert cfg.model.optim.name == "adam" and cfg.model.optim.lr == 1e-3 and cfg.model.batch_size == 100
     assert cfg.data.n_roads == 100 and list(cfg.noise.eval_std) == [0.0, 0.01]
     t = cfg.trainer
-    assert t.max_steps * 0.195 <= 450  # ~195 ms per paper_cnn step at batch 100 on 2 cores (benchmarks/README.md, "Time to the paper's labelled figures")
+    # ~195 ms per paper_cnn step at batch 100 on 2 cores (benchmarks/README.md, "Time to the paper's labelled figures")
+    assert t.max_steps * 0.195 <= 450
     assert t.max_steps // t.eval_every_n_steps <= 10 and t.max_steps % t.eval_every_n_steps == 0
 
 
@@ -202,17 +227,36 @@ def test_objective_of_a_run_without_override_comes_from_hydra_choices(tmp_path):
 def test_several_k_become_a_column_and_train_keeps_its_single_k(tmp_path):
     for seed in range(2):
         cells = {("train", 0.0, 1, p): 0.1 for p in ("p1", "p2")}
-        cells.update({("test", n, k, p): 0.2 + k / 100 + seed / 100 for n in (0.0, 0.01) for k in (16, 1, 4)
-                      for p in ("p1", "p2")})
-        make_run(tmp_path / "sw" / str(seed), ["objective=hybrid", f"seed={seed}"], seed,
-                 results=known_results(cells), config=CONFIG)
+        cells.update(
+            {
+                ("test", n, k, p): 0.2 + k / 100 + seed / 100
+                for n in (0.0, 0.01)
+                for k in (16, 1, 4)
+                for p in ("p1", "p2")
+            }
+        )
+        make_run(
+            tmp_path / "sw" / str(seed),
+            ["objective=hybrid", f"seed={seed}"],
+            seed,
+            results=known_results(cells),
+            config=CONFIG,
+        )
     rows = _table(reproduction_markdown(tmp_path / "sw"))
     hybrid = [(r["split"], r["noise std"], r["K"], r["p1 ours"]) for r in rows if r["objective"] == "hybrid"]
     assert hybrid == [("train", "0", "1", "10.00 ± 0.00")] + [
-        ("test", n, k, v) for n in ("0", "0.01")
-        for k, v in (("1", "21.50 ± 0.71"), ("4", "24.50 ± 0.71"), ("16", "36.50 ± 0.71"))]  # K in numeric order
+        ("test", n, k, v)
+        for n in ("0", "0.01")
+        for k, v in (("1", "21.50 ± 0.71"), ("4", "24.50 ± 0.71"), ("16", "36.50 ± 0.71"))
+    ]  # K in numeric order
     # the paper's labelled figures, not run here: one row each, not one per K
-    labelled = [(r["split"], r["noise std"], r["K"], r["p1 paper"], r["p1 ours"], r["seeds"]) for r in rows
-                if r["objective"] == "labelled"]
-    assert labelled == [("train", "0", "", "6.2", "not run", "0"), ("test", "0", "", "6.0", "not run", "0"),
-                        ("test", "0.01", "", "26-28", "not run", "0")]
+    labelled = [
+        (r["split"], r["noise std"], r["K"], r["p1 paper"], r["p1 ours"], r["seeds"])
+        for r in rows
+        if r["objective"] == "labelled"
+    ]
+    assert labelled == [
+        ("train", "0", "", "6.2", "not run", "0"),
+        ("test", "0", "", "6.0", "not run", "0"),
+        ("test", "0.01", "", "26-28", "not run", "0"),
+    ]

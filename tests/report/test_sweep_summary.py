@@ -7,12 +7,22 @@ import math
 import numpy as np
 import pandas as pd
 import pytest
-from evaluation_fakes import (FAILED_ERROR, NOISES, OBJECTIVES, PARAMS, SEEDS, make_run, make_sweep, parse_markdown,
-                              plain)
 
 from hybrid_sysid.report.collect import collect, find_runs
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.tables import summary_table, to_markdown
+
+from evaluation_fakes import (
+    FAILED_ERROR,
+    NOISES,
+    OBJECTIVES,
+    PARAMS,
+    SEEDS,
+    make_run,
+    make_sweep,
+    parse_markdown,
+    plain,
+)
 
 DDOF = 1
 
@@ -36,13 +46,22 @@ def test_summary_csv_carries_every_record_number_exactly(sweep):
         mine = [r for r in rows if r["run"] == str(job)]
         assert len(mine) == len(rec["results"]) == 6 * len(PARAMS)
         for want in rec["results"]:
-            [got] = [r for r in mine if r["split"] == want["split"] and float(r["noise_std"]) == want["noise_std"]
-                     and r["parameter"] == want["parameter"]]
+            [got] = [
+                r
+                for r in mine
+                if r["split"] == want["split"]
+                and float(r["noise_std"]) == want["noise_std"]
+                and r["parameter"] == want["parameter"]
+            ]
             assert float(got["mean_rel_dev"]) == want["mean_rel_dev"]  # exact: no rounding on the way
             assert float(got["std_rel_dev"]) == want["std_rel_dev"]
             assert int(got["n"]) == want["n"]
-            assert (got["status"], int(got["seed"]), int(got["steps"]), float(got["train_seconds"])) == \
-                   ("completed", rec["seed"], rec["steps"], rec["train_seconds"])
+            assert (got["status"], int(got["seed"]), int(got["steps"]), float(got["train_seconds"])) == (
+                "completed",
+                rec["seed"],
+                rec["steps"],
+                rec["train_seconds"],
+            )
             assert got["objective"] == rec["overrides"][0].split("=")[1] and got["noise"] == "ladder"
     assert "seed" in rows[0] and list(rows[0]).count("seed") == 1  # "seed=1" is not a second seed column
 
@@ -80,8 +99,11 @@ def _expected(sweep, objective, noise, param, metric="mean_rel_dev"):
     for job in range(4):
         rec = json.loads((sweep / str(job) / "metrics.json").read_text())
         if f"objective={objective}" in rec["overrides"]:
-            values += [r[metric] for r in rec["results"]
-                       if (r["split"], r["noise_std"], r["parameter"]) == ("test", noise, param)]
+            values += [
+                r[metric]
+                for r in rec["results"]
+                if (r["split"], r["noise_std"], r["parameter"]) == ("test", noise, param)
+            ]
     assert len(values) == len(SEEDS)
     return np.array(values)
 
@@ -137,10 +159,18 @@ def test_merged_sweeps_fill_a_key_a_run_did_not_override_from_its_saved_config(t
     # sweep a varied data.measurement; sweep b left it at its default (consistent) and varied only objective.
     # Merged, b's runs belong in the "consistent" rows, read from their .hydra/config.yaml, not a blank row.
     for seed in (0, 1):
-        make_run(tmp_path / "a" / str(seed), ["objective=hybrid", "data.measurement=paper", f"seed={seed}"], seed,
-                 config={"data": {"measurement": "paper"}})
-        make_run(tmp_path / "b" / str(seed), ["objective=hybrid", f"seed={seed}"], seed,
-                 config={"data": {"measurement": "consistent"}})
+        make_run(
+            tmp_path / "a" / str(seed),
+            ["objective=hybrid", "data.measurement=paper", f"seed={seed}"],
+            seed,
+            config={"data": {"measurement": "paper"}},
+        )
+        make_run(
+            tmp_path / "b" / str(seed),
+            ["objective=hybrid", f"seed={seed}"],
+            seed,
+            config={"data": {"measurement": "consistent"}},
+        )
     make_run(tmp_path / "c" / "0", ["objective=labelled", "seed=0"], 0, hydra=False)  # no .hydra/: stays blank
     df = collect([tmp_path / "a", tmp_path / "b", tmp_path / "c"])
     labels = df.groupby("run")["data.measurement"].first().to_dict()

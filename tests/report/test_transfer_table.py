@@ -1,13 +1,14 @@
 """experiment=transfer's table: nested sub-runs found, rows (scenario, row), marks within a scenario, bar figure."""
 
 import numpy as np
-from evaluation_fakes import PARAMS, known_results, make_run
 from matplotlib.container import BarContainer
 
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.tables import compare_marks, summary_table
 from hybrid_sysid.report.sweep_figures import transfer_figure
+from hybrid_sysid.report.tables import compare_marks, summary_table
+
+from evaluation_fakes import PARAMS, known_results, make_run
 
 ROWS = ["1 labelled, paper's car", "2 + hybrid adaptation"]
 VALUES = {"seat_shift": (0.19, 0.02), "body_shift": (0.015, 0.011)}  # per row; seed s adds 0.001 * s
@@ -20,9 +21,12 @@ def make_transfer_sweep(root):
         for scenario, values in VALUES.items():
             for row, value in zip(ROWS, values):
                 name = "source" if row.startswith("1") else "adapted"
-                make_run(root / str(seed) / scenario / name,
-                         ["experiment=transfer", f"scenario={scenario}", f"row={row}", f"seed={seed}"], seed,
-                         results=known_results({("test", 0.0, p): value + 0.001 * seed for p in ("p1", "p2")}))
+                make_run(
+                    root / str(seed) / scenario / name,
+                    ["experiment=transfer", f"scenario={scenario}", f"row={row}", f"seed={seed}"],
+                    seed,
+                    results=known_results({("test", 0.0, p): value + 0.001 * seed for p in ("p1", "p2")}),
+                )
     return root
 
 
@@ -56,8 +60,7 @@ def test_the_bar_figure_is_drawn(tmp_path, drawn):
         for bars in per_param:
             np.testing.assert_allclose([b.get_height() for b in bars], runs.mean(axis=1), rtol=1e-9)
             segments = bars.errorbar.lines[2][0].get_segments()
-            np.testing.assert_allclose([(s[1, 1] - s[0, 1]) / 2 for s in segments], runs.std(axis=1, ddof=1),
-                                       rtol=1e-6)
+            np.testing.assert_allclose([(s[1, 1] - s[0, 1]) / 2 for s in segments], runs.std(axis=1, ddof=1), rtol=1e-6)
         # p1 left of p2 in each row's group
         centres = [[b.get_x() + b.get_width() / 2 for b in bars] for bars in per_param]
         assert all(a < b < a + 1 for a, b in zip(*centres))

@@ -23,6 +23,7 @@ from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation
 from hybrid_sysid.data.spec import check_filter_fits
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass, fir_valid
+
 _SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
 
 
@@ -51,8 +52,13 @@ def lstsq_rows(a: np.ndarray, b: np.ndarray, y: np.ndarray) -> np.ndarray:
     return out
 
 
-def fit_p(seat: np.ndarray, rel_vel: np.ndarray, rel_disp: np.ndarray, taps: np.ndarray | None = None,
-          car: tuple[float, float] | None = None) -> np.ndarray:
+def fit_p(
+    seat: np.ndarray,
+    rel_vel: np.ndarray,
+    rel_disp: np.ndarray,
+    taps: np.ndarray | None = None,
+    car: tuple[float, float] | None = None,
+) -> np.ndarray:
     """(p1, p2) per row from z'' = -p1 rel_vel - p2 rel_disp, after an optional FIR on all three signals.
 
     ``car`` = (C3, K3) known (the paper's premise: only the seat mass m3 is unknown): one parameter per row,
@@ -86,20 +92,30 @@ class LeastSquaresFit:
         so p = (C3, K3) / m3 is one parameter (the paper's own premise).
     """
 
-    def __init__(self, span: str = "window", filter: str = "none", low_hz: float = 4.0, high_hz: float = 20.0,
-                 taps: int = 151, dt: float = 0.005, unknown: str = "p", c3: float | None = None,
-                 k3: float | None = None):
+    def __init__(
+        self,
+        span: str = "window",
+        filter: str = "none",
+        low_hz: float = 4.0,
+        high_hz: float = 20.0,
+        taps: int = 151,
+        dt: float = 0.005,
+        unknown: str = "p",
+        c3: float | None = None,
+        k3: float | None = None,
+    ):
         if span not in SPANS:
             raise ValueError(f"baseline.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
         if filter not in FILTERS:
             raise ValueError(f"baseline.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
         if unknown not in UNKNOWNS:
-            raise ValueError(f"baseline.unknown = {format_value(unknown)} is not allowed: "
-                             f"one of {', '.join(UNKNOWNS)}")
+            raise ValueError(f"baseline.unknown = {format_value(unknown)} is not allowed: one of {', '.join(UNKNOWNS)}")
         for key, value in (("c3", c3), ("k3", k3)):
             if unknown == "m3" and not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-                raise ValueError(f"baseline.{key} = {format_value(value)} is not allowed: must be finite and > 0 "
-                                 "with unknown = m3 (the car's constant, ${car." + key + "})")
+                raise ValueError(
+                    f"baseline.{key} = {format_value(value)} is not allowed: must be finite and > 0 "
+                    "with unknown = m3 (the car's constant, ${car." + key + "})"
+                )
         self.car = (float(c3), float(k3)) if unknown == "m3" else None
         check_bandpass(low_hz, high_hz, taps, dt, prefix="baseline")  # checked even when unused, so a typo never waits
         self.span, self.filter = span, filter
@@ -141,7 +157,7 @@ class LeastSquaresFit:
         code = SPLITS.index(split)
         preds = []
         for c in range(0, len(rows), _SERIES_CHUNK):
-            r = rows[c:c + _SERIES_CHUNK]
+            r = rows[c : c + _SERIES_CHUNK]
             seat = ds.seat_acc[r].astype(np.float64)
             body = ds.body_acc[r].astype(np.float64)
             if noise_std > 0:  # one generator per chunk of the split's rows: the same noise whatever the limit

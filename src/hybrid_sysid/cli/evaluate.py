@@ -52,8 +52,10 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
                 OmegaConf.update(cfg, k, OmegaConf.select(composed, k), merge=False)
             continue
         if top not in OVERRIDABLE and key not in LAUNCHER_KEYS:
-            raise ConfigError(f"{key} cannot be overridden in an evaluation: the network and how it was trained "
-                              f"are the run's; allowed: {', '.join(OVERRIDABLE)} (and their keys)")
+            raise ConfigError(
+                f"{key} cannot be overridden in an evaluation: the network and how it was trained "
+                f"are the run's; allowed: {', '.join(OVERRIDABLE)} (and their keys)"
+            )
         OmegaConf.update(cfg, key, OmegaConf.select(composed, key), merge=False)
     return cfg
 
@@ -83,9 +85,15 @@ def hydra_main(composed: DictConfig) -> dict:
     hc = HydraConfig.get()
     out_dir, overrides = Path(hc.runtime.output_dir), list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
-    record = run_job(lambda: evaluate(composed, out_dir, overrides, checked=not multirun), out_dir, overrides,
-                     composed.get("seed", 0), multirun=multirun, sweep_dir=Path(hc.sweep.dir) if multirun else None,
-                     again="run the same command again to evaluate it")
+    record = run_job(
+        lambda: evaluate(composed, out_dir, overrides, checked=not multirun),
+        out_dir,
+        overrides,
+        composed.get("seed", 0),
+        multirun=multirun,
+        sweep_dir=Path(hc.sweep.dir) if multirun else None,
+        again="run the same command again to evaluate it",
+    )
     if record.get("status") == "completed":
         from hybrid_sysid.report.run_figures import write_run_figures
 

@@ -119,8 +119,16 @@ def fail(message: str, status: int = 2):
     sys.exit(status)
 
 
-def run_job(work: Callable[[], Any], run_dir: Path, overrides: list[str], seed: int, *, multirun: bool,
-            sweep_dir: Path | None = None, again: str = "run the same command again") -> Any:
+def run_job(
+    work: Callable[[], Any],
+    run_dir: Path,
+    overrides: list[str],
+    seed: int,
+    *,
+    multirun: bool,
+    sweep_dir: Path | None = None,
+    again: str = "run the same command again",
+) -> Any:
     """Run one job's ``work()`` and return what it returns. A signal before or during it records the job as
     interrupted in ``run_dir`` (a single job then exits 128 + the signal; a sweep's job returns its record so
     the sweep goes on to its summary, and marks the sweep so jobs not yet started skip). An exception records
@@ -205,8 +213,10 @@ class Preflight(Callback):
         except Exception:  # noqa: BLE001 - an unreadable file cannot tell: the jobs' own guards still hold
             return
         if was != _sweep_of(config):
-            fail(f"hydra.sweep.dir = {sweep_dir} holds a sweep of other overrides ({' '.join(was[0])}); "
-                 "re-run it with the same ones, or choose another hydra.sweep.dir")
+            fail(
+                f"hydra.sweep.dir = {sweep_dir} holds a sweep of other overrides ({' '.join(was[0])}); "
+                "re-run it with the same ones, or choose another hydra.sweep.dir"
+            )
 
 
 def _sweep_of(cfg: DictConfig) -> tuple:

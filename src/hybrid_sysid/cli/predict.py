@@ -13,15 +13,13 @@ import math
 import sys
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.inference.estimator import InputError, load_estimator
 from hybrid_sysid.inference.readers import read_input
 
-USAGE = ("usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true|false] "
-         "[dt=SECONDS]")
+USAGE = "usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true|false] [dt=SECONDS]"
 KEYS = ("run", "input", "output", "windows", "resample", "dt")
 
 
@@ -70,8 +68,14 @@ def run(args: dict) -> pd.DataFrame:
     recordings = read_input(Path(args["input"]), args.get("dt"))
     estimator = load_estimator(args["run"])
     try:
-        table = estimator.predict(recordings.seat, recordings.body, recordings.dt, windows=args["windows"],
-                                  resample=args["resample"], names=recordings.names)
+        table = estimator.predict(
+            recordings.seat,
+            recordings.body,
+            recordings.dt,
+            windows=args["windows"],
+            resample=args["resample"],
+            names=recordings.names,
+        )
     except InputError as exc:
         raise InputError(f"input = {args['input']}: {exc}") from None
     print(table.to_string(index=False))

@@ -44,8 +44,9 @@ def search_value(record: dict) -> float | None:
     return None if value is None else float(value)
 
 
-def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, experiment: str | None,
-             run_name: str | None) -> dict:
+def run_task(
+    cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, experiment: str | None, run_name: str | None
+) -> dict:
     """The job's task (``task``): imported here, so a sweep's parent process, which only composes and launches
     jobs, loads no torch."""
     if cfg.task == "transfer":
@@ -71,9 +72,15 @@ def hydra_main(cfg: DictConfig) -> Any:
     sweep_dir = Path(hc.sweep.dir) if multirun else None
     # in a tracker, a sweep's jobs are runs of one experiment named after the sweep directory
     experiment = sweep_dir.name if multirun else None
-    record = run_job(lambda: run_task(cfg, run_dir, overrides, multirun, experiment, hc.job.override_dirname or None),
-                     run_dir, overrides, cfg.get("seed", 0), multirun=multirun, sweep_dir=sweep_dir,
-                     again=f"continue it with resume={run_dir} (a sweep: run the same command again)")
+    record = run_job(
+        lambda: run_task(cfg, run_dir, overrides, multirun, experiment, hc.job.override_dirname or None),
+        run_dir,
+        overrides,
+        cfg.get("seed", 0),
+        multirun=multirun,
+        sweep_dir=sweep_dir,
+        again=f"continue it with resume={run_dir} (a sweep: run the same command again)",
+    )
     if cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
         _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
     return search_value(record) if searching else record
@@ -94,8 +101,11 @@ def main() -> None:
     for arg in sys.argv[1:]:
         for old, new in MOVED.items():
             if arg.startswith(old):
-                print(f"error: {arg} is not allowed: the baselines are a config group of their own: "
-                      f"{arg.replace(old, new, 1)}", file=sys.stderr)
+                print(
+                    f"error: {arg} is not allowed: the baselines are a config group of their own: "
+                    f"{arg.replace(old, new, 1)}",
+                    file=sys.stderr,
+                )
                 sys.exit(2)
     console_main(hydra_main, sys.argv[1:])
 

@@ -11,5 +11,15 @@ from hybrid_sysid.core.checks import ConfigError
 
 register()
 
-__all__ = ["CONF_DIR", "Config", "ConfigError", "EvalConfig", "available_memory", "check_memory", "flatten",
-           "register", "validate", "window_settings"]
+__all__ = [
+    "CONF_DIR",
+    "Config",
+    "ConfigError",
+    "EvalConfig",
+    "available_memory",
+    "check_memory",
+    "flatten",
+    "register",
+    "validate",
+    "window_settings",
+]

@@ -140,9 +140,18 @@ class EvalConfig(Config):
 
 
 # the schema's sections, whose keys are fixed (model.net, objective, baseline, car and trainer.extra are free-form)
-SECTIONS = {"": Config, "data": DataConfig, "road": RoadConfig, "noise": NoiseConfig, "model": ModelConfig,
-            "model.optim": OptimConfig, "trainer": TrainerConfig, "evaluation": EvaluationConfig,
-            "transfer": TransferConfig, "tuned": TunedConfig}
+SECTIONS = {
+    "": Config,
+    "data": DataConfig,
+    "road": RoadConfig,
+    "noise": NoiseConfig,
+    "model": ModelConfig,
+    "model.optim": OptimConfig,
+    "trainer": TrainerConfig,
+    "evaluation": EvaluationConfig,
+    "transfer": TransferConfig,
+    "tuned": TunedConfig,
+}
 
 
 def flatten(tree: dict, prefix: str = "") -> dict:

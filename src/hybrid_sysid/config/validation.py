@@ -76,8 +76,12 @@ def validate(cfg: DictConfig) -> None:
         bad("trainer.eval_every_n_steps", t.eval_every_n_steps, "must be >= 1")
     curve_every = t.get("curve_every_n_steps")
     if curve_every is not None and not (curve_every >= 1 and curve_every % t.eval_every_n_steps == 0):
-        bad("trainer.curve_every_n_steps", curve_every, f"a multiple of trainer.eval_every_n_steps = "
-            f"{t.eval_every_n_steps} (curve points are taken at validations), or null for every validation")
+        bad(
+            "trainer.curve_every_n_steps",
+            curve_every,
+            f"a multiple of trainer.eval_every_n_steps = "
+            f"{t.eval_every_n_steps} (curve points are taken at validations), or null for every validation",
+        )
     if t.threads is not None and t.threads < 1:
         bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
     check_choice("trainer.monitor", t.monitor, MONITORS)
@@ -114,9 +118,16 @@ def _check_known_keys(cfg: DictConfig) -> None:
             if key not in known:
                 name = f"{section}.{key}" if section else str(key)
                 hint = difflib.get_close_matches(str(key), known, n=1)
-                bad(name, OmegaConf.select(node, str(key), throw_on_missing=False),
-                    "unknown key" + (f" (did you mean {section + '.' if section else ''}{hint[0]}?)" if hint
-                                     else f"; {section or 'the config'} has {', '.join(known)}"))
+                bad(
+                    name,
+                    OmegaConf.select(node, str(key), throw_on_missing=False),
+                    "unknown key"
+                    + (
+                        f" (did you mean {section + '.' if section else ''}{hint[0]}?)"
+                        if hint
+                        else f"; {section or 'the config'} has {', '.join(known)}"
+                    ),
+                )
 
 
 def _check_finite(value, key: str) -> None:
@@ -169,9 +180,12 @@ def check_memory(cfg: DictConfig) -> None:
     need, available = dataset_bytes(cfg), available_memory()
     if available is not None and need > available:
         d = cfg.data
-        bad("data.n_roads * data.n_masses * data.n_steps", f"{d.n_roads} * {d.n_masses} * {d.n_steps}",
+        bad(
+            "data.n_roads * data.n_masses * data.n_steps",
+            f"{d.n_roads} * {d.n_masses} * {d.n_steps}",
             f"the dataset needs about {need / 2**30:.3g} GiB, more than the {available / 2**30:.3g} GiB of "
-            "memory available")
+            "memory available",
+        )
 
 
 def _one_line(exc: BaseException) -> str:
@@ -230,8 +244,12 @@ def _validate_baseline(cfg: DictConfig, spec: DatasetSpec) -> None:
     kwargs = OmegaConf.to_container(cfg.baseline, resolve=True)
     cls = get_class(kwargs.pop("_target_"))
     if kwargs.get("unknown") == "m3" and spec.seat_spread > 0:
-        bad("baseline.unknown", "m3", f"needs the car's C3 and K3 on every recording, but data.seat_spread = "
-            f"{spec.seat_spread} varies them; use unknown=p")
+        bad(
+            "baseline.unknown",
+            "m3",
+            f"needs the car's C3 and K3 on every recording, but data.seat_spread = "
+            f"{spec.seat_spread} varies them; use unknown=p",
+        )
     window_settings(cfg).validate(spec)
     try:  # called directly: instantiate() would wrap the one-line message in its own
         cls(**kwargs).check_lengths(cfg.data.window, cfg.data.n_steps)

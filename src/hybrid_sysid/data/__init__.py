@@ -6,5 +6,13 @@ from hybrid_sysid.data.dataset import SimulatedDataset, generate_dataset
 from hybrid_sysid.data.spec import DatasetSpec, WindowSettings
 from hybrid_sysid.data.splits import SPLITS, Split, split_by_road
 
-__all__ = ["SPLITS", "DatasetSpec", "SimulatedDataset", "Split", "WindowSettings", "generate_dataset", "get_dataset",
-           "split_by_road"]
+__all__ = [
+    "SPLITS",
+    "DatasetSpec",
+    "SimulatedDataset",
+    "Split",
+    "WindowSettings",
+    "generate_dataset",
+    "get_dataset",
+    "split_by_road",
+]

@@ -98,8 +98,9 @@ def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -
         lock.acquire()
     except OSError as exc:
         lock = None
-        _cache_warning(f"dataset cache {path.parent} cannot be locked ({type(exc).__name__}: {exc}); "
-                       "using it without the lock")
+        _cache_warning(
+            f"dataset cache {path.parent} cannot be locked ({type(exc).__name__}: {exc}); using it without the lock"
+        )
     try:
         if lock is not None:
             _remove_stale_temporaries(path)
@@ -110,8 +111,7 @@ def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -
                 return ds
             except CacheError as exc:
                 _cache_warning(f"{exc}; regenerating it")
-        log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps,
-                 path)
+        log.info("simulating %d roads x %d masses x %d steps -> %s", spec.n_roads, spec.n_masses, spec.n_steps, path)
         ds = generate_dataset(spec)
         try:
             save_dataset(ds, path)

@@ -88,8 +88,9 @@ class QuarterCarDataModule(L.LightningDataModule):
         """How many window starts a recording offers."""
         return self.settings.n_starts(self.spec)
 
-    def eval_batch(self, split: str, noise_std: float = 0.0, limit: int | None = None,
-                   windows: int = 1) -> dict[str, torch.Tensor]:
+    def eval_batch(
+        self, split: str, noise_std: float = 0.0, limit: int | None = None, windows: int = 1
+    ) -> dict[str, torch.Tensor]:
         """All (or the first ``limit``) recordings of a split at their fixed windows, with noise of this std.
 
         ``windows`` = K fixed windows per recording, laid out recording by recording (batch row i * K + j is
@@ -151,21 +152,28 @@ class QuarterCarDataModule(L.LightningDataModule):
             return starts, None, None
         # float32 halves the memory of the series-long draw (2000 x 2 x 6000 on the paper's test split: 96 MB)
         series = np.random.default_rng([self.seed, code, 300]).standard_normal(
-            (n, 2, self.spec.n_steps), dtype=np.float32)
+            (n, 2, self.spec.n_steps), dtype=np.float32
+        )
         cols = starts[:, :, None] + np.arange(self.window)  # (n, K, window)
         base = np.stack([np.take_along_axis(series[:, c], cols.reshape(n, -1), axis=1) for c in (0, 1)], axis=1)
         vel, pos = integrate(series[:, 0].astype(np.float64) - series[:, 1], self.data.dt)
         before = np.maximum(starts - 1, 0)
-        state = np.stack([np.take_along_axis(vel, starts, axis=1),
-                          np.where(starts > 0, np.take_along_axis(pos, before, axis=1), 0.0)], axis=-1)
+        state = np.stack(
+            [
+                np.take_along_axis(vel, starts, axis=1),
+                np.where(starts > 0, np.take_along_axis(pos, before, axis=1), 0.0),
+            ],
+            axis=-1,
+        )
         return starts, base.reshape(n, 2, k, self.window).transpose(0, 2, 1, 3).astype(np.float64), state
 
-    def eval_dataloader(self, split: str, noise_std: float = 0.0, limit: int | None = None,
-                        windows: int = 1) -> DataLoader:
+    def eval_dataloader(
+        self, split: str, noise_std: float = 0.0, limit: int | None = None, windows: int = 1
+    ) -> DataLoader:
         full = self.eval_batch(split, noise_std, limit, windows)
         n = len(full["index"])
         size = self.eval_batch_size
-        chunks = [{k: v[i:i + size] for k, v in full.items()} for i in range(0, n, size)]
+        chunks = [{k: v[i : i + size] for k, v in full.items()} for i in range(0, n, size)]
         return DataLoader(chunks, batch_size=None)
 
     def state_dict(self) -> dict:

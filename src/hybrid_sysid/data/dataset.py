@@ -12,8 +12,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybrid_sysid.data.spec import DatasetSpec
-from hybrid_sysid.physics import (STEPPED, continuous_recordings, relative_states, road_amplitudes, road_phases,
-                                  road_profiles, wave_numbers)
+from hybrid_sysid.physics import (
+    STEPPED,
+    continuous_recordings,
+    relative_states,
+    road_amplitudes,
+    road_phases,
+    road_profiles,
+    wave_numbers,
+)
 from hybrid_sysid.physics.compiled import simulate_recordings
 
 CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
@@ -69,9 +76,18 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
     if spec.measurement in STEPPED:
         channels = simulate_recordings(roads, road_id, masses, spec.dt, spec.car, spec.measurement, c3=c3, k3=k3)
     else:
-        seat, body = continuous_recordings(road_amplitudes(classes, spec.n_waves, spec.amplitude), phases,
-                                           wave_numbers(spec.n_waves) * spec.speed, road_id, masses, spec.n_steps,
-                                           spec.dt, spec.car, c3=c3, k3=k3)
+        seat, body = continuous_recordings(
+            road_amplitudes(classes, spec.n_waves, spec.amplitude),
+            phases,
+            wave_numbers(spec.n_waves) * spec.speed,
+            road_id,
+            masses,
+            spec.n_steps,
+            spec.dt,
+            spec.car,
+            c3=c3,
+            k3=k3,
+        )
         rel = relative_states(seat, body, spec.dt, spec.measurement)
         channels = tuple(x.astype(np.float32) for x in (seat, body, *rel))
     return SimulatedDataset(

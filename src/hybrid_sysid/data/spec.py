@@ -13,8 +13,7 @@ from dataclasses import asdict, dataclass, field, fields
 from hybrid_sysid.core.checks import ConfigError, check_choice
 from hybrid_sysid.core.options import AMPLITUDES, INTEGRATIONS
 from hybrid_sysid.data.splits import split_by_road
-from hybrid_sysid.physics import (DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED, QuarterCar,
-                                  stable_dt_limit)
+from hybrid_sysid.physics import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED, QuarterCar, stable_dt_limit
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 3  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording
@@ -45,6 +44,7 @@ class DatasetSpec:
 
     def validate(self, prefix: str = "data") -> None:
         """Raise ConfigError (a ValueError) naming the key, the value and what is allowed; before any work."""
+
         def bad(key, value, allowed):
             raise ConfigError(f"{key} = {value!r} is not allowed: {allowed}")
 
@@ -62,8 +62,12 @@ class DatasetSpec:
             limit = stable_dt_limit(self.car, self.m3_min, self.m3_max, self.seat_spread)
             if self.dt > limit:
                 spread = f", seat_spread {self.seat_spread:g}" if self.seat_spread else ""
-                bad(f"{prefix}.dt", self.dt, f"the semi-implicit Euler scheme is unstable above {limit:.4g} s for "
-                    f"this car ({self.car.describe()}; m3 in [{self.m3_min}, {self.m3_max}] kg{spread})")
+                bad(
+                    f"{prefix}.dt",
+                    self.dt,
+                    f"the semi-implicit Euler scheme is unstable above {limit:.4g} s for "
+                    f"this car ({self.car.describe()}; m3 in [{self.m3_min}, {self.m3_max}] kg{spread})",
+                )
         if not self.speed > 0:
             bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
         if self.n_waves < 2:
@@ -112,8 +116,10 @@ class WindowSettings:
         that each window must leave MIN_FILTERED samples of."""
         if not min_window <= self.window <= spec.n_steps:
             why = f" ({min_window} = the shortest window the network's kernels fit)" if min_window > 1 else ""
-            raise ConfigError(f"data.window = {self.window} is not allowed: must lie in [{min_window}, "
-                              f"data.n_steps = {spec.n_steps}]{why}")
+            raise ConfigError(
+                f"data.window = {self.window} is not allowed: must lie in [{min_window}, "
+                f"data.n_steps = {spec.n_steps}]{why}"
+            )
         check_choice("data.integration", self.integration, INTEGRATIONS)
         split_by_road(spec.n_roads, spec.n_masses, self.train_fraction, self.val_fraction)
         check_filter_fits(taps, self.window, "objective.filter.taps", "data.window")
@@ -126,13 +132,17 @@ class WindowSettings:
 def check_filter_fits(taps: int | None, length: int, key: str, length_key: str) -> None:
     """A band-pass of ``taps`` must leave MIN_FILTERED samples of what it filters (a window or a recording)."""
     if taps is not None and taps > length - MIN_FILTERED + 1:
-        raise ConfigError(f"{key} = {taps} is not allowed: must be <= {length_key} - {MIN_FILTERED - 1} = "
-                          f"{length - MIN_FILTERED + 1} (the band-pass must leave at least {MIN_FILTERED} samples)")
+        raise ConfigError(
+            f"{key} = {taps} is not allowed: must be <= {length_key} - {MIN_FILTERED - 1} = "
+            f"{length - MIN_FILTERED + 1} (the band-pass must leave at least {MIN_FILTERED} samples)"
+        )
 
 
 def check_eval_windows(windows, n_starts: int) -> None:
     """evaluation.windows: K values, each an integer in [1, the window starts a recording offers]."""
     windows = list(windows)
     if not windows or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= n_starts for k in windows):
-        raise ConfigError(f"evaluation.windows = {windows} is not allowed: a non-empty list of integers K in [1, "
-                          f"data.n_steps - data.window + 1 = {n_starts}] (windows per recording)")
+        raise ConfigError(
+            f"evaluation.windows = {windows} is not allowed: a non-empty list of integers K in [1, "
+            f"data.n_steps - data.window + 1 = {n_starts}] (windows per recording)"
+        )

@@ -34,7 +34,8 @@ def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fracti
         raise ConfigError(
             f"data.n_roads = {n_roads} is too few for data.train_fraction = {train_fraction} and "
             f"data.val_fraction = {val_fraction}: need at least one training, one test"
-            + (" and one validation road" if val_fraction > 0 else " road"))
+            + (" and one validation road" if val_fraction > 0 else " road")
+        )
 
     def recordings(r0, r1):
         return np.arange(r0 * n_masses, r1 * n_masses)

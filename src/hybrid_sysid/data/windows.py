@@ -41,9 +41,9 @@ def start_state(starts: np.ndarray, dt: float, normals: np.ndarray) -> np.ndarra
     X = dt^2 sum_{j<s} (s - 1 - j) d_j: Var V = 2 dt^2 s, Var X = 2 dt^4 sum m^2, Cov = 2 dt^3 sum m (m < s).
     """
     s = np.asarray(starts, dtype=np.float64)
-    var_v = 2 * dt ** 2 * s
-    cov = 2 * dt ** 3 * s * (s - 1) / 2
-    var_x = 2 * dt ** 4 * (s - 1) * s * (2 * s - 1) / 6
+    var_v = 2 * dt**2 * s
+    cov = 2 * dt**3 * s * (s - 1) / 2
+    var_x = 2 * dt**4 * (s - 1) * s * (2 * s - 1) / 6
     a = np.sqrt(var_v)
     b = np.divide(cov, a, out=np.zeros_like(a), where=a > 0)
     c = np.sqrt(np.maximum(var_x - b * b, 0.0))
@@ -84,19 +84,23 @@ class WindowCutter:
             self.fir = torch.fft.rfft(torch.from_numpy(fir.astype(np.float32)), self.nfft)
             self.taps = len(fir)
             short = window - len(fir) + 1
-            self.filtered = [_windows(fir_valid(a, fir).astype(np.float32), short)
-                             for a in (ds.seat_acc, ds.rel_vel, ds.rel_disp)]
+            self.filtered = [
+                _windows(fir_valid(a, fir).astype(np.float32), short) for a in (ds.seat_acc, ds.rel_vel, ds.rel_disp)
+            ]
 
-    def batch(self, rows, starts, noise: np.ndarray | None = None,
-              state: np.ndarray | None = None) -> dict[str, torch.Tensor]:
+    def batch(
+        self, rows, starts, noise: np.ndarray | None = None, state: np.ndarray | None = None
+    ) -> dict[str, torch.Tensor]:
         """Windows (rows[i], starts[i]); ``noise`` (B, 2, W) added to both channels; ``state`` (B, 2): the
         noise's (V, X) at each window's start (``start_state``), used by integration "t0" (None: zero)."""
         rows, starts = np.asarray(rows, dtype=np.int64), np.asarray(starts, dtype=np.int64)
         signals = torch.stack([gather(self.seat, rows, starts), gather(self.body, rows, starts)], dim=1)
         if self.integration == "window":  # clean and noisy alike, from zero at the window's start
             acc = signals.numpy().astype(np.float64) + (0.0 if noise is None else noise)
-            rel_vel, rel_disp = (torch.from_numpy(v.astype(np.float32))
-                                 for v in relative_states(acc[:, 0], acc[:, 1], self.dt, self.measurement))
+            rel_vel, rel_disp = (
+                torch.from_numpy(v.astype(np.float32))
+                for v in relative_states(acc[:, 0], acc[:, 1], self.dt, self.measurement)
+            )
         else:
             rel_vel, rel_disp = gather(self.rel_vel, rows, starts), gather(self.rel_disp, rows, starts)
         noise_f = None
@@ -105,7 +109,7 @@ class WindowCutter:
             if self.fir is not None:  # the window's own noise only: the filter removes what came before
                 parts = torch.from_numpy(np.stack([noise[:, 0], nv, nd], axis=1).astype(np.float32))
                 full = torch.fft.irfft(torch.fft.rfft(parts, self.nfft) * self.fir, self.nfft)
-                noise_f = full[..., self.taps - 1:self.window]
+                noise_f = full[..., self.taps - 1 : self.window]
             if self.integration == "t0":
                 if state is not None:  # v_{s+k} = V + local v_k; x_{s+k} = X + (k + 1) dt V + local x_k
                     nv = nv + state[:, :1]
@@ -114,8 +118,13 @@ class WindowCutter:
                 rel_disp = rel_disp + torch.from_numpy(nd.astype(np.float32))
             signals = signals + torch.from_numpy(noise.astype(np.float32))
         index = torch.from_numpy(rows)
-        batch = {"signals": signals, "params": self.params[index], "rel_vel": rel_vel, "rel_disp": rel_disp,
-                 "index": index}
+        batch = {
+            "signals": signals,
+            "params": self.params[index],
+            "rel_vel": rel_vel,
+            "rel_disp": rel_disp,
+            "index": index,
+        }
         if self.fir is not None:
             for i, key in enumerate(("seat_f", "rel_vel_f", "rel_disp_f")):
                 batch[key] = gather(self.filtered[i], rows, starts)
@@ -136,8 +145,9 @@ class RandomWindows(IterableDataset):
     seeded by (seed, e, r), so N ranks see N different batches per step.
     """
 
-    def __init__(self, data: WindowCutter, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0,
-                 rank: int = 0):
+    def __init__(
+        self, data: WindowCutter, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0, rank: int = 0
+    ):
         self.data, self.rows, self.batch_size = data, rows, batch_size
         self.seed, self.noise_std, self.start_batch, self.rank = seed, noise_std, 0, rank
 
@@ -168,8 +178,9 @@ class RandomWindows(IterableDataset):
             if self.noise_std > 0:  # one generator per batch, so a resumed stream draws the same noise
                 noise_rng = np.random.default_rng(self._key(2000 + e, b))
                 noise = self.noise_std * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
-                state = self.noise_std * start_state(starts[sl], self.data.dt,
-                                                     noise_rng.standard_normal((len(order[sl]), 2)))
+                state = self.noise_std * start_state(
+                    starts[sl], self.data.dt, noise_rng.standard_normal((len(order[sl]), 2))
+                )
             yield self.data.batch(order[sl], starts[sl], noise, state)
 
     def __iter__(self) -> Iterator[dict[str, torch.Tensor]]:

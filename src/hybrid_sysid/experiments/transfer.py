@@ -31,8 +31,12 @@ from hybrid_sysid.training.run import evaluate_checkpoint, train
 
 log = logging.getLogger("hybrid_sysid")
 # table rows, numbered so they sort in the order the scenario reads
-SOURCE, ADAPTED, SCRATCH, ORACLE = ("1 labelled, paper's car", "2 + hybrid adaptation", "3 hybrid from scratch",
-                                    "4 labelled oracle")
+SOURCE, ADAPTED, SCRATCH, ORACLE = (
+    "1 labelled, paper's car",
+    "2 + hybrid adaptation",
+    "3 hybrid from scratch",
+    "4 labelled oracle",
+)
 SCENARIO_KEYS = ("car", "data")
 
 
@@ -49,8 +53,9 @@ def target(cfg: DictConfig, name: str, scenario) -> DictConfig:
     """The config on a scenario's target: ``car`` names a car preset (conf/car), ``data`` holds data values."""
     unknown = sorted(set(scenario) - set(SCENARIO_KEYS))
     if unknown:
-        raise ConfigError(f"transfer.scenarios.{name}.{unknown[0]} is not allowed: a scenario sets "
-                          f"{' and '.join(SCENARIO_KEYS)}")
+        raise ConfigError(
+            f"transfer.scenarios.{name}.{unknown[0]} is not allowed: a scenario sets {' and '.join(SCENARIO_KEYS)}"
+        )
     out = OmegaConf.merge(cfg, {"data": scenario.get("data") or {}})
     if scenario.get("car"):
         out.car = preset("car", scenario.car, f"transfer.scenarios.{name}")
@@ -68,9 +73,19 @@ def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, li
         tag = [f"scenario={name}"]
         runs += [
             ("eval", variant(goal, "labelled"), job_dir / name / "source", tag + [f"row={SOURCE}"], source_dir),
-            ("train", variant(goal, "hybrid", init_from=str(source_dir), trainer__max_steps=t.adapt_steps,
-                              model__optim__lr=t.adapt_lr), job_dir / name / "adapted", tag + [f"row={ADAPTED}"],
-             None),
+            (
+                "train",
+                variant(
+                    goal,
+                    "hybrid",
+                    init_from=str(source_dir),
+                    trainer__max_steps=t.adapt_steps,
+                    model__optim__lr=t.adapt_lr,
+                ),
+                job_dir / name / "adapted",
+                tag + [f"row={ADAPTED}"],
+                None,
+            ),
             ("train", variant(goal, "hybrid"), job_dir / name / "scratch", tag + [f"row={SCRATCH}"], None),
             ("train", variant(goal, "labelled"), job_dir / name / "oracle", tag + [f"row={ORACLE}"], None),
         ]

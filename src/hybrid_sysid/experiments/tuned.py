@@ -5,10 +5,10 @@ One job per objective (the sweep runs them side by side) does, in its own direct
 
 - ``search/<n>``: ``tuned.n_trials`` trials of a seeded TPE study (optuna) over the space and sampler settings of
   an hparams_search preset (``tuned.search``: conf/hparams_search/<name>.yaml), each trained as the runs below
-  are (without learning-curve points), on ``tuned.trial_seed``, and scored by its model-selection figure (val/loss for the hybrid
-  objective, which reads no labels; val/rel_dev for the others). Trial 0 is the model's default values, so the
-  best trial is never worse on validation than the untuned network. ``search/best.yaml`` and
-  ``search/trials.csv`` hold the study.
+  are (without learning-curve points), on ``tuned.trial_seed``, and scored by its model-selection figure
+  (val/loss for the hybrid objective, which reads no labels; val/rel_dev for the others). Trial 0 is the
+  model's default values, so the best trial is never worse on validation than the untuned network.
+  ``search/best.yaml`` and ``search/trials.csv`` hold the study.
 - ``default/<seed>`` and ``tuned/<seed>``: the default values and the best trial's, trained with the
   experiment's own trainer settings for each of ``tuned.seeds``.
 
@@ -52,12 +52,18 @@ def search_space(params) -> dict:
             space[key] = d.CategoricalDistribution(list(value.list))
         elif isinstance(value, IntervalSweep):
             ints, log_scale = isinstance(value.start, int) and isinstance(value.end, int), "log" in value.tags
-            kind = {(True, True): d.IntLogUniformDistribution, (True, False): d.IntUniformDistribution,
-                    (False, True): d.LogUniformDistribution, (False, False): d.UniformDistribution}[ints, log_scale]
+            kind = {
+                (True, True): d.IntLogUniformDistribution,
+                (True, False): d.IntUniformDistribution,
+                (False, True): d.LogUniformDistribution,
+                (False, False): d.UniformDistribution,
+            }[ints, log_scale]
             space[key] = kind(value.start, value.end)
         else:
-            raise ConfigError(f"tuned.search: hydra.sweeper.params.{key} = {spec!r} is not allowed: "
-                              "choice(...) or interval(a, b), optionally tag(log, interval(a, b))")
+            raise ConfigError(
+                f"tuned.search: hydra.sweeper.params.{key} = {spec!r} is not allowed: "
+                "choice(...) or interval(a, b), optionally tag(log, interval(a, b))"
+            )
     return space
 
 
@@ -67,11 +73,16 @@ def defaults_in(cfg: DictConfig, space: dict) -> dict:
     out = {}
     for key, dist in space.items():
         value = OmegaConf.select(cfg, key, default=None)
-        inside = value in dist.choices if hasattr(dist, "choices") else \
-            isinstance(value, (int, float)) and dist.low <= value <= dist.high
+        inside = (
+            value in dist.choices
+            if hasattr(dist, "choices")
+            else isinstance(value, (int, float)) and dist.low <= value <= dist.high
+        )
         if value is None or not inside:
-            raise ConfigError(f"{key} = {value!r} is not allowed with experiment=tuned: the search's first trial "
-                              f"is the config's own values, and this one lies outside {dist}")
+            raise ConfigError(
+                f"{key} = {value!r} is not allowed with experiment=tuned: the search's first trial "
+                f"is the config's own values, and this one lies outside {dist}"
+            )
         out[key] = value
     return out
 
@@ -141,11 +152,18 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     if not done:
         raise RuntimeError(f"every one of the {t.n_trials} trials failed (records in {job_dir / SEARCH})")
     best = study.best_trial
-    write_yaml_atomic(job_dir / SEARCH / "best.yaml", {
-        "overrides": base, "monitor": " / ".join(sorted(map(str, monitors))), "direction": sweeper.direction,
-        "n_trials": t.n_trials, "completed": len(done),
-        "default": {"trial": 0, "value": study.trials[0].value, "params": defaults},
-        "best": {"trial": best.number, "value": best.value, "params": best.params}})
+    write_yaml_atomic(
+        job_dir / SEARCH / "best.yaml",
+        {
+            "overrides": base,
+            "monitor": " / ".join(sorted(map(str, monitors))),
+            "direction": sweeper.direction,
+            "n_trials": t.n_trials,
+            "completed": len(done),
+            "default": {"trial": 0, "value": study.trials[0].value, "params": defaults},
+            "best": {"trial": best.number, "value": best.value, "params": best.params},
+        },
+    )
     trials = study.trials_dataframe(attrs=("number", "value", "params", "state"))
     write_atomic(job_dir / SEARCH / "trials.csv", lambda p: trials.to_csv(p, index=False))
 

@@ -49,12 +49,14 @@ def load_estimator(run_dir: str | Path, checkpoint: str | Path | None = None) ->
         raise InputError(f"run = {run.path} has no {CONFIG}; allowed: a run directory written by hybrid-sysid")
     try:
         cfg = OmegaConf.load(run.config_file)
-    except Exception as exc:  # yaml's own errors are many classes; the message says which
+    except Exception as exc:  # noqa: BLE001 - yaml's own errors are many classes; the message says which
         raise InputError(f"run = {run.path}: cannot read {CONFIG} ({type(exc).__name__}: {exc})") from None
     baseline = OmegaConf.select(cfg, "baseline", default=None)
     if baseline is not None:
-        raise InputError(f"run = {run.path} is a baseline (baseline._target_ = {baseline.get('_target_')}) without a "
-                         "trained network; allowed: a run of a network model (fast_cnn, paper_cnn)")
+        raise InputError(
+            f"run = {run.path} is a baseline (baseline._target_ = {baseline.get('_target_')}) without a "
+            "trained network; allowed: a run of a network model (fast_cnn, paper_cnn)"
+        )
     return Estimator(_network(cfg, _checkpoint_path(run, checkpoint)), cfg)
 
 
@@ -67,8 +69,10 @@ def _checkpoint_path(run: RunDir, checkpoint) -> Path:
     for path in candidates:
         if path.is_file():
             return path
-    raise InputError(f"run = {run.path} has no checkpoint {' or '.join(str(p) for p in candidates)}; allowed: "
-                     "a run that trained a network (hybrid-sysid writes checkpoints/best.ckpt and last.ckpt)")
+    raise InputError(
+        f"run = {run.path} has no checkpoint {' or '.join(str(p) for p in candidates)}; allowed: "
+        "a run that trained a network (hybrid-sysid writes checkpoints/best.ckpt and last.ckpt)"
+    )
 
 
 def _network(cfg: DictConfig, path: Path) -> torch.nn.Module:
@@ -76,14 +80,15 @@ def _network(cfg: DictConfig, path: Path) -> torch.nn.Module:
     the training code: if build_model gains arguments, this is the line to change."""
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
-    except Exception as exc:  # torch raises several classes for a truncated or foreign file
+    except Exception as exc:  # noqa: BLE001 - torch raises several classes for a truncated or foreign file
         raise InputError(f"checkpoint {path} cannot be read ({type(exc).__name__}: {exc})") from None
     model = build_model(cfg)
     try:
         model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
     except RuntimeError as exc:  # another run's checkpoint: torch lists every mismatched key, one line each
-        raise InputError(f"checkpoint {path} does not fit the run's model.net ({cfg.model.net._target_}): "
-                         f"{str(exc).splitlines()[0]}") from None
+        raise InputError(
+            f"checkpoint {path} does not fit the run's model.net ({cfg.model.net._target_}): {str(exc).splitlines()[0]}"
+        ) from None
     return model.net
 
 
@@ -97,8 +102,9 @@ class Estimator:
         self.window = int(config.data.window)
         self.car = QuarterCar(**config.get("car", {}))
 
-    def predict(self, seat_acc, body_acc, dt: float, windows: int = 8, resample: bool = False,
-                names: Sequence | None = None) -> pd.DataFrame:
+    def predict(
+        self, seat_acc, body_acc, dt: float, windows: int = 8, resample: bool = False, names: Sequence | None = None
+    ) -> pd.DataFrame:
         """Estimates per recording: p1, p2 (1/s, 1/s^2) averaged over ``windows`` windows, their std over the
         windows, and m3 (kg) from each, m3 = C3 / p1 and K3 / p2 for the run's car.
 
@@ -120,8 +126,10 @@ class Estimator:
             for channel, x in (("seat_acc", seat), ("body_acc", body)):
                 bad = np.flatnonzero(~np.isfinite(x))
                 if bad.size:
-                    raise InputError(f"{channel} of recording {name!r} holds {x[bad[0]]} at step {bad[0]}: "
-                                     "every value must be finite")
+                    raise InputError(
+                        f"{channel} of recording {name!r} holds {x[bad[0]]} at step {bad[0]}: "
+                        "every value must be finite"
+                    )
             signals = np.stack([seat, body])  # channel 0 seat, 1 body, as WindowCutter.batch stacks them
             if dt != self.dt:
                 signals = resample_to(signals, dt, self.dt)
@@ -130,10 +138,20 @@ class Estimator:
         estimates = self._estimate(np.concatenate(cut)).reshape(len(recordings), int(windows), 2)
         p = estimates.mean(axis=1)
         spread = estimates.std(axis=1)  # of the K window estimates; 0 for K = 1
-        return pd.DataFrame({
-            "recording": names, "steps": steps, "windows": int(windows),
-            "p1": p[:, 0], "p1_std": spread[:, 0], "p2": p[:, 1], "p2_std": spread[:, 1],
-            "m3_from_p1": self.car.c3 / p[:, 0], "m3_from_p2": self.car.k3 / p[:, 1]}, columns=COLUMNS)
+        return pd.DataFrame(
+            {
+                "recording": names,
+                "steps": steps,
+                "windows": int(windows),
+                "p1": p[:, 0],
+                "p1_std": spread[:, 0],
+                "p2": p[:, 1],
+                "p2_std": spread[:, 1],
+                "m3_from_p1": self.car.c3 / p[:, 0],
+                "m3_from_p2": self.car.k3 / p[:, 1],
+            },
+            columns=COLUMNS,
+        )
 
     def _check_dt(self, dt, resample: bool) -> float:
         given = dt
@@ -146,8 +164,10 @@ class Estimator:
         if abs(dt - self.dt) <= DT_RTOL * self.dt:
             return self.dt
         if not resample:
-            raise InputError(f"dt = {dt:g} s differs from the run's data.dt = {self.dt:g} s; allowed: within "
-                             f"{DT_RTOL:g} relative, or pass resample=true to resample to the run's rate")
+            raise InputError(
+                f"dt = {dt:g} s differs from the run's data.dt = {self.dt:g} s; allowed: within "
+                f"{DT_RTOL:g} relative, or pass resample=true to resample to the run's rate"
+            )
         _ratio(dt, self.dt)  # fails here, before any work, if no fraction is close enough
         return dt
 
@@ -157,11 +177,15 @@ class Estimator:
         n, w = signals.shape[1], self.window
         after = " after resampling to the run's dt" if resampled else ""
         if n < w:
-            raise InputError(f"recording {name!r} has {n} steps{after}; allowed: at least the run's "
-                             f"data.window = {w} steps ({w * self.dt:g} s)")
+            raise InputError(
+                f"recording {name!r} has {n} steps{after}; allowed: at least the run's "
+                f"data.window = {w} steps ({w * self.dt:g} s)"
+            )
         if k > n - w + 1:
-            raise InputError(f"windows = {k} is not allowed for recording {name!r}: its {n} steps{after} offer "
-                             f"{n - w + 1} distinct starts of a {w}-step window; allowed: 1 to {n - w + 1}")
+            raise InputError(
+                f"windows = {k} is not allowed for recording {name!r}: its {n} steps{after} offer "
+                f"{n - w + 1} distinct starts of a {w}-step window; allowed: 1 to {n - w + 1}"
+            )
         starts = np.arange(k) * (n - w) // max(k - 1, 1)
         return np.lib.stride_tricks.sliding_window_view(signals, w, axis=1)[:, starts].transpose(1, 0, 2)
 
@@ -169,13 +193,16 @@ class Estimator:
     def _estimate(self, windows: np.ndarray) -> np.ndarray:
         """(n, 2, window) float64 -> (n, 2) float64 estimates, in chunks."""
         self.net.eval()
-        out = [self.net(torch.from_numpy(windows[i:i + CHUNK].astype(np.float32))).numpy()
-               for i in range(0, len(windows), CHUNK)]
+        out = [
+            self.net(torch.from_numpy(windows[i : i + CHUNK].astype(np.float32))).numpy()
+            for i in range(0, len(windows), CHUNK)
+        ]
         return np.concatenate(out).astype(np.float64)
 
 
 def _recordings(seat_acc, body_acc) -> list[tuple[np.ndarray, np.ndarray]]:
     """(seat, body) float64 1-D pairs, one per recording, with equal lengths checked."""
+
     def split(name, x) -> list[np.ndarray]:
         try:
             if isinstance(x, (list, tuple)) and x and np.ndim(x[0]) == 1:
@@ -184,8 +211,10 @@ def _recordings(seat_acc, body_acc) -> list[tuple[np.ndarray, np.ndarray]]:
         except (TypeError, ValueError) as exc:
             raise InputError(f"{name} cannot be read as numbers ({exc}); allowed: float arrays in m/s^2") from None
         if x.ndim not in (1, 2) or x.size == 0:
-            raise InputError(f"{name} has shape {x.shape}; allowed: 1-D (one recording), 2-D (recordings, steps) "
-                             "or a list of 1-D arrays, not empty")
+            raise InputError(
+                f"{name} has shape {x.shape}; allowed: 1-D (one recording), 2-D (recordings, steps) "
+                "or a list of 1-D arrays, not empty"
+            )
         return [x] if x.ndim == 1 else list(x)
 
     seat, body = split("seat_acc", seat_acc), split("body_acc", body_acc)
@@ -193,8 +222,10 @@ def _recordings(seat_acc, body_acc) -> list[tuple[np.ndarray, np.ndarray]]:
         raise InputError(f"seat_acc holds {len(seat)} recordings and body_acc {len(body)}: they must be equal")
     for i, (s, b) in enumerate(zip(seat, body)):
         if s.shape != b.shape or s.ndim != 1:
-            raise InputError(f"recording {i}: seat_acc has shape {s.shape} and body_acc {b.shape}; allowed: "
-                             "two 1-D arrays of one length")
+            raise InputError(
+                f"recording {i}: seat_acc has shape {s.shape} and body_acc {b.shape}; allowed: "
+                "two 1-D arrays of one length"
+            )
     return list(zip(seat, body))
 
 
@@ -202,8 +233,10 @@ def _ratio(dt_from: float, dt_to: float) -> Fraction:
     """up / down, the resampling factor of the sample rate: dt_from / dt_to as a small fraction."""
     ratio = Fraction(dt_from / dt_to).limit_denominator(MAX_DENOMINATOR)
     if ratio == 0 or abs(float(ratio) * dt_to / dt_from - 1) > RATIO_RTOL:
-        raise InputError(f"dt = {dt_from:g} s cannot be resampled to the run's data.dt = {dt_to:g} s: no fraction "
-                         f"with a denominator up to {MAX_DENOMINATOR} is within {RATIO_RTOL:g} of their ratio")
+        raise InputError(
+            f"dt = {dt_from:g} s cannot be resampled to the run's data.dt = {dt_to:g} s: no fraction "
+            f"with a denominator up to {MAX_DENOMINATOR} is within {RATIO_RTOL:g} of their ratio"
+        )
     return ratio
 
 

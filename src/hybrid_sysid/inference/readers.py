@@ -49,8 +49,10 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
     needed = list(CHANNELS) + ([] if dt is not None else ["time"])
     missing = [c for c in needed if c not in df.columns]
     if missing:
-        raise InputError(f"input = {path} has no column {', '.join(missing)} (its columns: "
-                         f"{', '.join(map(str, df.columns))}); needed: seat_acc, body_acc, and time or dt=")
+        raise InputError(
+            f"input = {path} has no column {', '.join(missing)} (its columns: "
+            f"{', '.join(map(str, df.columns))}); needed: seat_acc, body_acc, and time or dt="
+        )
     if df.empty:
         raise InputError(f"input = {path} holds a header but no rows; allowed: one row per sample")
     columns = [c for c in (*CHANNELS, "time") if c in df.columns]
@@ -72,9 +74,11 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
     (first, step), others = steps[0], steps[1:]
     for name, s in others:
         if abs(s - step) > DT_RTOL * step:
-            raise InputError(f"input = {path}: recording {name!r} has a time step of {s:.9g} s, recording "
-                             f"{first!r} {step:.9g} s; allowed: one sample rate per file (within {DT_RTOL:g} "
-                             "relative; give dt= when the time stamps are rounded)")
+            raise InputError(
+                f"input = {path}: recording {name!r} has a time step of {s:.9g} s, recording "
+                f"{first!r} {step:.9g} s; allowed: one sample rate per file (within {DT_RTOL:g} "
+                "relative; give dt= when the time stamps are rounded)"
+            )
     return Recordings(seat, body, step, names)
 
 
@@ -84,8 +88,10 @@ def numbers(column: pd.Series, path: Path) -> pd.Series:
     values = pd.to_numeric(column, errors="coerce")
     bad = np.flatnonzero(values.isna().to_numpy() & column.notna().to_numpy())
     if bad.size:
-        raise InputError(f"input = {path}: column {column.name} holds {column.iloc[bad[0]]!r} in data row "
-                         f"{bad[0] + 1}; allowed: numbers")
+        raise InputError(
+            f"input = {path}: column {column.name} holds {column.iloc[bad[0]]!r} in data row "
+            f"{bad[0] + 1}; allowed: numbers"
+        )
     return values
 
 
@@ -100,9 +106,11 @@ def uniform_step(t: np.ndarray, path: Path, name) -> float:
     off = np.flatnonzero(np.abs(steps - step) > UNIFORM_RTOL * abs(step)) if step > 0 else [0]
     if len(off):
         k = off[0]
-        raise InputError(f"{where} is not uniform: from {t[k]:g} s to {t[k + 1]:g} s is a step of {steps[k]:g} s "
-                         f"against a mean of {step:g} s; allowed: increasing times, every step within "
-                         f"{UNIFORM_RTOL:.0%} of the mean")
+        raise InputError(
+            f"{where} is not uniform: from {t[k]:g} s to {t[k + 1]:g} s is a step of {steps[k]:g} s "
+            f"against a mean of {step:g} s; allowed: increasing times, every step within "
+            f"{UNIFORM_RTOL:.0%} of the mean"
+        )
     return float(step)
 
 
@@ -111,8 +119,10 @@ def choose_dt(file_dt: float, dt: float | None, path: Path, what: str) -> float:
     if dt is None:
         return file_dt
     if abs(file_dt - dt) > UNIFORM_RTOL * dt:
-        raise InputError(f"dt = {dt:g} s disagrees with {what} of input = {path} ({file_dt:g} s); allowed: "
-                         f"within {UNIFORM_RTOL:.0%}, or leave dt= out")
+        raise InputError(
+            f"dt = {dt:g} s disagrees with {what} of input = {path} ({file_dt:g} s); allowed: "
+            f"within {UNIFORM_RTOL:.0%}, or leave dt= out"
+        )
     return dt
 
 
@@ -126,13 +136,17 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
     needed = list(CHANNELS) + ([] if dt is not None else ["dt"])
     missing = [k for k in needed if k not in arrays]
     if missing:
-        raise InputError(f"input = {path} has no array {', '.join(missing)} (its arrays: {', '.join(arrays)}); "
-                         "needed: seat_acc, body_acc, and dt or dt=")
+        raise InputError(
+            f"input = {path} has no array {', '.join(missing)} (its arrays: {', '.join(arrays)}); "
+            "needed: seat_acc, body_acc, and dt or dt="
+        )
     for k in CHANNELS:
         a = arrays[k]
         if a.dtype.kind not in "fiu" or a.ndim not in (1, 2) or a.size == 0:
-            raise InputError(f"input = {path}: array {k} has dtype {a.dtype} and shape {a.shape}; allowed: numbers, "
-                             "1-D (one recording) or 2-D (recordings, steps), not empty")
+            raise InputError(
+                f"input = {path}: array {k} has dtype {a.dtype} and shape {a.shape}; allowed: numbers, "
+                "1-D (one recording) or 2-D (recordings, steps), not empty"
+            )
     if "dt" in arrays:
         a = arrays["dt"]
         if a.dtype.kind not in "fiu" or a.size != 1 or not (np.isfinite(a).all() and a.item() > 0):

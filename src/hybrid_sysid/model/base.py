@@ -10,7 +10,8 @@ import numpy as np
 
 @runtime_checkable
 class SplitPredictor(Protocol):
-    def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None,
-                      windows: int = 1) -> tuple[np.ndarray, np.ndarray]:
+    def predict_split(
+        self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(pred, true), float64 (recordings, 2): p1, p2 per recording of ``split`` (its first ``limit``) at noise
         std ``noise_std``, the prediction being the mean over ``windows`` = K fixed windows per recording."""

@@ -17,7 +17,12 @@ def summarise(pred: np.ndarray, true: np.ndarray, **labels) -> list[dict]:
     """One long-form row per parameter: labels + mean_rel_dev, std_rel_dev, n."""
     dev = relative_deviation(pred, true)
     return [
-        {**labels, "parameter": name, "mean_rel_dev": float(dev[:, i].mean()),
-         "std_rel_dev": float(dev[:, i].std()), "n": int(dev.shape[0])}
+        {
+            **labels,
+            "parameter": name,
+            "mean_rel_dev": float(dev[:, i].mean()),
+            "std_rel_dev": float(dev[:, i].std()),
+            "n": int(dev.shape[0]),
+        }
         for i, name in enumerate(PARAMETERS)
     ]

@@ -25,9 +25,17 @@ class IdentificationModule(L.LightningModule):
     The learning curves are recorded by a callback of the training layer (hybrid_sysid.training.callbacks).
     """
 
-    def __init__(self, net: nn.Module, objective: nn.Module, optimizer: str = "adamw", lr: float = 3e-3,
-                 weight_decay: float = 0.0, schedule: str = "onecycle", max_steps: int = 1000,
-                 warmup_fraction: float = 0.3):
+    def __init__(
+        self,
+        net: nn.Module,
+        objective: nn.Module,
+        optimizer: str = "adamw",
+        lr: float = 3e-3,
+        weight_decay: float = 0.0,
+        schedule: str = "onecycle",
+        max_steps: int = 1000,
+        warmup_fraction: float = 0.3,
+    ):
         super().__init__()
         if optimizer not in OPTIMIZERS:
             raise ValueError(f"model.optim.name = {optimizer!r} is unknown; allowed: {', '.join(OPTIMIZERS)}")
@@ -46,8 +54,9 @@ class IdentificationModule(L.LightningModule):
     def training_step(self, batch, batch_idx):
         loss = self.objective(self(batch["signals"]), batch)
         if not torch.isfinite(loss):  # global_step counts the steps taken before this one
-            raise FloatingPointError(f"training loss is {loss.item()} at step {self.global_step}; "
-                                     "lower model.optim.lr or check the data")
+            raise FloatingPointError(
+                f"training loss is {loss.item()} at step {self.global_step}; lower model.optim.lr or check the data"
+            )
         # a self.log call costs about 1.8 ms (benchmarks/README.md, training throughput), near a tenth of a
         # fast_cnn step: the progress bar's loss follows Lightning's own default logging interval instead
         # (on the steps where the Trainer's log_every_n_steps = LOG_EVERY passes it on to the loggers)
@@ -95,9 +104,11 @@ class IdentificationModule(L.LightningModule):
         if hp.schedule == "constant":
             return opt
         if hp.schedule == "onecycle":
-            sched = torch.optim.lr_scheduler.OneCycleLR(opt, max_lr=hp.lr, total_steps=max(hp.max_steps, 2),
-                                                        pct_start=hp.warmup_fraction)
+            sched = torch.optim.lr_scheduler.OneCycleLR(
+                opt, max_lr=hp.lr, total_steps=max(hp.max_steps, 2), pct_start=hp.warmup_fraction
+            )
         else:
             sched = torch.optim.lr_scheduler.LambdaLR(
-                opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, hp.max_steps) / max(hp.max_steps, 1))))
+                opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, hp.max_steps) / max(hp.max_steps, 1)))
+            )
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}

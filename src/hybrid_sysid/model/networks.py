@@ -30,8 +30,7 @@ class PaperCNN(nn.Module):
     leaves open").
     """
 
-    def __init__(self, p_scale: Sequence[float], window: int = 500, in_channels: int = 2,
-                 activation: str = "tanh"):
+    def __init__(self, p_scale: Sequence[float], window: int = 500, in_channels: int = 2, activation: str = "tanh"):
         super().__init__()
         window = check_int("window", window, self.shortest_window())
         in_channels = check_int("in_channels", in_channels, 1)
@@ -41,11 +40,15 @@ class PaperCNN(nn.Module):
         act = getattr(nn, ACTIVATIONS[activation])
         flat = 100 * (window - 50 + 1 - 10 + 1)
         self.net = nn.Sequential(
-            nn.Conv1d(in_channels, 100, kernel_size=50), nn.Tanh(),
-            nn.Conv1d(100, 100, kernel_size=10), act(),
+            nn.Conv1d(in_channels, 100, kernel_size=50),
+            nn.Tanh(),
+            nn.Conv1d(100, 100, kernel_size=10),
+            act(),
             nn.Flatten(),
-            nn.Linear(flat, 100), act(),
-            nn.Linear(100, 10), act(),
+            nn.Linear(flat, 100),
+            act(),
+            nn.Linear(100, 10),
+            act(),
             nn.Linear(10, 2),
         )
 
@@ -79,9 +82,19 @@ class FastCNN(nn.Module):
     batches.
     """
 
-    def __init__(self, p_min: Sequence[float], p_max: Sequence[float], in_channels: int = 2, channels: int = 32,
-                 n_layers: int = 4, kernel_size: int = 9, margin: float = 0.1, diff_channel: bool = True,
-                 bn_momentum: float = 0.01, downsample: str = "stride"):
+    def __init__(
+        self,
+        p_min: Sequence[float],
+        p_max: Sequence[float],
+        in_channels: int = 2,
+        channels: int = 32,
+        n_layers: int = 4,
+        kernel_size: int = 9,
+        margin: float = 0.1,
+        diff_channel: bool = True,
+        bn_momentum: float = 0.01,
+        downsample: str = "stride",
+    ):
         super().__init__()
         in_channels = check_int("in_channels", in_channels, 1)
         channels = check_int("channels", channels, 1)
@@ -109,8 +122,11 @@ class FastCNN(nn.Module):
         layers, c_in = [], in_channels + int(self.diff_channel)
         stride = 2 if downsample == "stride" else 1
         for _ in range(n_layers):
-            layers += [nn.Conv1d(c_in, channels, kernel_size, stride=stride, padding=kernel_size // 2, bias=False),
-                       nn.BatchNorm1d(channels, momentum=bn_momentum), nn.ReLU()]
+            layers += [
+                nn.Conv1d(c_in, channels, kernel_size, stride=stride, padding=kernel_size // 2, bias=False),
+                nn.BatchNorm1d(channels, momentum=bn_momentum),
+                nn.ReLU(),
+            ]
             if downsample == "pool":
                 layers.append(nn.MaxPool1d(2))
             c_in = channels

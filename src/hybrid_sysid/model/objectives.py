@@ -90,16 +90,25 @@ class HybridObjective(nn.Module):
 
     uses_labels = False  # model selection then stays label-free too (trainer.monitor=auto picks val/loss)
 
-    def __init__(self, normalize: bool = True, eps: float = 1e-12, filter: dict | None = None,
-                 weighting: str = "none", dt: float | None = None, measurement: str = "consistent"):
+    def __init__(
+        self,
+        normalize: bool = True,
+        eps: float = 1e-12,
+        filter: dict | None = None,
+        weighting: str = "none",
+        dt: float | None = None,
+        measurement: str = "consistent",
+    ):
         super().__init__()
         if not (math.isfinite(eps) and eps >= 0):
             raise ValueError(f"eps = {eps} is invalid; it must be finite and >= 0")
         if weighting not in WEIGHTINGS:
             raise ValueError(f"objective.weighting = {weighting!r} is not allowed: one of {', '.join(WEIGHTINGS)}")
         if weighting == "eiv" and filter is None:
-            raise ValueError("objective.weighting = 'eiv' is not allowed without objective.filter "
-                             "(unfiltered, integrated noise has no finite variance)")
+            raise ValueError(
+                "objective.weighting = 'eiv' is not allowed without objective.filter "
+                "(unfiltered, integrated noise has no finite variance)"
+            )
         self.normalize = bool(normalize)
         self.eps = float(eps)
         self.filter, self.weighting = (dict(filter) if filter is not None else None), weighting
@@ -112,14 +121,15 @@ class HybridObjective(nn.Module):
                 raise ValueError("objective.dt is missing: a filtered objective needs the data's step (${data.dt})")
             self.fir = filter_taps(self.filter, dt)
             if weighting == "eiv":
-                self.register_buffer("gram", torch.tensor(noise_gram(self.fir, dt, measurement),
-                                                          dtype=torch.float32))
+                self.register_buffer("gram", torch.tensor(noise_gram(self.fir, dt, measurement), dtype=torch.float32))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         if self.filter is not None:
             if "seat_f" not in batch:
-                raise KeyError("objective.filter is set but the batch has no filtered signals: build the data "
-                               "module with the objective's fir (hybrid_sysid.training.build.build_datamodule does)")
+                raise KeyError(
+                    "objective.filter is set but the batch has no filtered signals: build the data "
+                    "module with the objective's fir (hybrid_sysid.training.build.build_datamodule does)"
+                )
             seat, rel_vel, rel_disp = (batch[k].to(pred) for k in self.keys)
         else:
             seat = batch["signals"][:, 0].to(pred)
@@ -137,21 +147,34 @@ class HybridObjective(nn.Module):
 class CombinedObjective(nn.Module):
     """labelled_weight * J_L + hybrid_weight * J_U; other keyword arguments go to the two objectives."""
 
-    def __init__(self, p_scale: Sequence[float], labelled_weight: float = 1.0, hybrid_weight: float = 1.0,
-                 norm: str = "l1", normalize: bool = True, eps: float = 1e-12, filter: dict | None = None,
-                 weighting: str = "none", dt: float | None = None, measurement: str = "consistent"):
+    def __init__(
+        self,
+        p_scale: Sequence[float],
+        labelled_weight: float = 1.0,
+        hybrid_weight: float = 1.0,
+        norm: str = "l1",
+        normalize: bool = True,
+        eps: float = 1e-12,
+        filter: dict | None = None,
+        weighting: str = "none",
+        dt: float | None = None,
+        measurement: str = "consistent",
+    ):
         super().__init__()
         for name, w in (("labelled_weight", labelled_weight), ("hybrid_weight", hybrid_weight)):
             if not (math.isfinite(w) and w >= 0):
                 raise ValueError(f"objective.{name} = {w} is not allowed: must be finite and >= 0")
         if labelled_weight == 0 and hybrid_weight == 0:
-            raise ValueError(f"objective.labelled_weight / objective.hybrid_weight = [{format_value(labelled_weight)}, "
-                             f"{format_value(hybrid_weight)}] is not allowed: labelled_weight and hybrid_weight must "
-                             "not both be zero")
+            raise ValueError(
+                f"objective.labelled_weight / objective.hybrid_weight = [{format_value(labelled_weight)}, "
+                f"{format_value(hybrid_weight)}] is not allowed: labelled_weight and hybrid_weight must "
+                "not both be zero"
+            )
         self.labelled_weight, self.hybrid_weight = float(labelled_weight), float(hybrid_weight)
         self.labelled = LabelledObjective(p_scale=p_scale, norm=norm)
-        self.hybrid = HybridObjective(normalize=normalize, eps=eps, filter=filter, weighting=weighting, dt=dt,
-                                      measurement=measurement)
+        self.hybrid = HybridObjective(
+            normalize=normalize, eps=eps, filter=filter, weighting=weighting, dt=dt, measurement=measurement
+        )
         # with labelled_weight 0 the combination is label-free, and model selection must stay so too
         self.uses_labels = self.labelled_weight > 0
         self.fir = self.hybrid.fir

@@ -8,16 +8,22 @@ from hybrid_sysid.physics.integrate import integrate, integrate_trapezoid, relat
 from hybrid_sysid.physics.quarter_car import (
     DEFAULT_MEASUREMENT,
     MEASUREMENTS,
-    Coefficients,
     STEPPED,
+    Coefficients,
     QuarterCar,
     seat_car,
     simulate,
     stable_dt_limit,
     step,
 )
-from hybrid_sysid.physics.road import (ROAD_CLASSES, road_amplitudes, road_phases, road_profiles, wave_amplitudes,
-                                      wave_numbers)
+from hybrid_sysid.physics.road import (
+    ROAD_CLASSES,
+    road_amplitudes,
+    road_phases,
+    road_profiles,
+    wave_amplitudes,
+    wave_numbers,
+)
 
 __all__ = [
     "DEFAULT_MEASUREMENT",

@@ -14,8 +14,14 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from hybrid_sysid.physics.quarter_car import (DEFAULT_MEASUREMENT, Coefficients, QuarterCar, check_measurement,
-                                              seat_car, step)
+from hybrid_sysid.physics.quarter_car import (
+    DEFAULT_MEASUREMENT,
+    Coefficients,
+    QuarterCar,
+    check_measurement,
+    seat_car,
+    step,
+)
 
 step_inline = numba.njit(inline="always")(step)
 
@@ -42,9 +48,20 @@ def kernel(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, 
                 i = min(first + lane, n_rec - 1)
                 c = coefs[i]
                 coef = Coefficients(c[0], c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9], c[10])
-                u, v, w, x, y, z, seat, body = step_inline(s[0, lane], s[1, lane], s[2, lane], s[3, lane],
-                                                           s[4, lane], s[5, lane], roads[road_of[i], k],
-                                                           p1s[i], p2s[i], dt, coef, consistent)
+                u, v, w, x, y, z, seat, body = step_inline(
+                    s[0, lane],
+                    s[1, lane],
+                    s[2, lane],
+                    s[3, lane],
+                    s[4, lane],
+                    s[5, lane],
+                    roads[road_of[i], k],
+                    p1s[i],
+                    p2s[i],
+                    dt,
+                    coef,
+                    consistent,
+                )
                 s[0, lane], s[1, lane], s[2, lane], s[3, lane], s[4, lane], s[5, lane] = u, v, w, x, y, z
                 rel_vel = s[6, lane] * dt
                 s[7, lane] += rel_vel
@@ -55,8 +72,17 @@ def kernel(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, 
                 vel_out[i, k], disp_out[i, k] = rel_vel, s[7, lane] * dt
 
 
-def simulate_recordings(roads: np.ndarray, road_of, m3, dt: float, car: QuarterCar = QuarterCar(),
-                        measurement: str = DEFAULT_MEASUREMENT, out=None, c3=None, k3=None):
+def simulate_recordings(
+    roads: np.ndarray,
+    road_of,
+    m3,
+    dt: float,
+    car: QuarterCar = QuarterCar(),
+    measurement: str = DEFAULT_MEASUREMENT,
+    out=None,
+    c3=None,
+    k3=None,
+):
     """Every recording i on road ``roads[road_of[i]]`` with mass ``m3[i]``, from a zero state.
 
     ``c3``, ``k3``: per-recording seat constants (arrays of n_recordings) in place of the car's.
@@ -74,14 +100,31 @@ def simulate_recordings(roads: np.ndarray, road_of, m3, dt: float, car: QuarterC
     if out is None:
         out = tuple(np.empty((n, n_steps), dtype=np.float32) for _ in range(4))
     out = tuple(out)
-    if (len(out) != 4 or any(a.dtype not in (np.float32, np.float64) or a.dtype != out[0].dtype
-                             or a.shape != (n, n_steps) or not a.flags.c_contiguous for a in out)):
-        raise ValueError(f"out must be four C-contiguous float32 or float64 arrays of one dtype, shape "
-                         f"({n}, {n_steps}); got {[(a.dtype.name, a.shape) for a in out]}")
+    if len(out) != 4 or any(
+        a.dtype not in (np.float32, np.float64)
+        or a.dtype != out[0].dtype
+        or a.shape != (n, n_steps)
+        or not a.flags.c_contiguous
+        for a in out
+    ):
+        raise ValueError(
+            f"out must be four C-contiguous float32 or float64 arrays of one dtype, shape "
+            f"({n}, {n_steps}); got {[(a.dtype.name, a.shape) for a in out]}"
+        )
     if measurement not in ("paper", "consistent"):
-        raise ValueError(f"measurement = {measurement!r}: the kernel steps eq. 11 (paper, consistent); "
-                         "continuous recordings come from physics.exact")
+        raise ValueError(
+            f"measurement = {measurement!r}: the kernel steps eq. 11 (paper, consistent); "
+            "continuous recordings come from physics.exact"
+        )
     coefs = np.ascontiguousarray(np.stack(np.broadcast_arrays(*car.coefficients(), p1), axis=1)[:, :-1])
-    kernel(roads, np.asarray(road_of, dtype=np.int64), np.ascontiguousarray(p1), np.ascontiguousarray(p2),
-           float(dt), coefs, measurement == "consistent", *out)
+    kernel(
+        roads,
+        np.asarray(road_of, dtype=np.int64),
+        np.ascontiguousarray(p1),
+        np.ascontiguousarray(p2),
+        float(dt),
+        coefs,
+        measurement == "consistent",
+        *out,
+    )
     return out

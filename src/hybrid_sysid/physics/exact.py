@@ -30,7 +30,7 @@ def expm(a: np.ndarray) -> np.ndarray:
     a = np.asarray(a, dtype=np.float64)
     norm = np.abs(a).sum(axis=-2).max()  # the 1-norm of the largest matrix
     squarings = max(0, int(np.ceil(np.log2(norm / 0.5)))) if norm > 0 else 0
-    a = a / 2.0 ** squarings
+    a = a / 2.0**squarings
     eye = np.broadcast_to(np.eye(a.shape[-1]), a.shape)
     result, term = eye.copy(), eye.copy()
     for k in range(1, 19):
@@ -41,8 +41,18 @@ def expm(a: np.ndarray) -> np.ndarray:
     return result
 
 
-def continuous_recordings(amplitudes: np.ndarray, phases: np.ndarray, omegas: np.ndarray, road_of, m3,
-                          n_steps: int, dt: float, car: QuarterCar = QuarterCar(), c3=None, k3=None):
+def continuous_recordings(
+    amplitudes: np.ndarray,
+    phases: np.ndarray,
+    omegas: np.ndarray,
+    road_of,
+    m3,
+    n_steps: int,
+    dt: float,
+    car: QuarterCar = QuarterCar(),
+    c3=None,
+    k3=None,
+):
     """Seat and body accelerations (z'', y'') of every recording i on road ``road_of[i]`` with mass ``m3[i]``,
     sampled at t_k = k dt, k = 0..n_steps-1, from the exact solution of eq. 10 (module docstring).
 
@@ -64,8 +74,9 @@ def continuous_recordings(amplitudes: np.ndarray, phases: np.ndarray, omegas: np
     seat, body = np.empty((n, n_steps)), np.empty((n, n_steps))
     for lo in range(0, n, CHUNK):
         rows = slice(lo, min(lo + CHUNK, n))
-        a = np.stack([replace(car, c3=c, k3=k).system_matrix(m)
-                      for c, k, m in zip(c3s[rows], k3s[rows], m3[rows])])  # (r, 6, 6)
+        a = np.stack(
+            [replace(car, c3=c, k3=k).system_matrix(m) for c, k, m in zip(c3s[rows], k3s[rows], m3[rows])]
+        )  # (r, 6, 6)
         # (j Omega_i I - A)^{-1} b for every recording and wave, weighted by the road's A_i e^{-j phi_i}
         resolvent = 1j * omegas[None, :, None, None] * np.eye(6) - a[:, None]
         x = np.linalg.solve(resolvent, np.broadcast_to(b, resolvent.shape[:-1])[..., None])[..., 0]  # (r, waves, 6)

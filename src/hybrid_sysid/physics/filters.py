@@ -24,6 +24,7 @@ from hybrid_sysid.core.options import FILTER_KEYS
 
 def check_bandpass(low_hz, high_hz, taps, dt, prefix: str = "baseline") -> None:
     """Raise ValueError naming the key, the value and what is allowed."""
+
     def bad(key, value, allowed):
         raise ValueError(f"{prefix}.{key} = {format_value(value)} is not allowed: {allowed}")
 
@@ -79,4 +80,4 @@ def fir_valid(x: np.ndarray, h: np.ndarray) -> np.ndarray:
         raise ValueError(f"a filter of {taps} taps does not fit a signal of {t} samples")
     n = 1 << int(np.ceil(np.log2(t + taps - 1)))  # no circular wrap-around
     y = np.fft.irfft(np.fft.rfft(x, n, axis=-1) * np.fft.rfft(h, n), n, axis=-1)
-    return y[..., taps - 1:t]
+    return y[..., taps - 1 : t]

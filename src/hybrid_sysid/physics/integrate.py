@@ -58,8 +58,7 @@ def relative_states(
     """
     check_measurement(measurement)
     if measurement == "continuous":
-        return integrate_trapezoid(np.asarray(seat_acc, dtype=np.float64) - np.asarray(body_acc, dtype=np.float64),
-                                   dt)
+        return integrate_trapezoid(np.asarray(seat_acc, dtype=np.float64) - np.asarray(body_acc, dtype=np.float64), dt)
     body_acc = np.asarray(body_acc, dtype=np.float64)
     # Integrate the difference, not each channel: seat and body positions follow the road (and drift) by far
     # more than their difference, so subtracting two integrated positions cancels most digits (the relative

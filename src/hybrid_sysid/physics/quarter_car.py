@@ -64,9 +64,17 @@ class QuarterCar:
     def coefficients(self) -> Coefficients:
         m1, m2 = self.m1, self.m2
         return Coefficients(
-            uu=-self.c2 / m1, uv=self.c2 / m1, uy=self.k2 / m1, ux=-(self.k1 + self.k2) / m1, ur=self.k1 / m1,
-            vw=self.c3 / m2, vv=-(self.c2 + self.c3) / m2, vu=self.c2 / m2, vz=self.k3 / m2,
-            vy=-(self.k2 + self.k3) / m2, vx=self.k2 / m2,
+            uu=-self.c2 / m1,
+            uv=self.c2 / m1,
+            uy=self.k2 / m1,
+            ux=-(self.k1 + self.k2) / m1,
+            ur=self.k1 / m1,
+            vw=self.c3 / m2,
+            vv=-(self.c2 + self.c3) / m2,
+            vu=self.c2 / m2,
+            vz=self.k3 / m2,
+            vy=-(self.k2 + self.k3) / m2,
+            vx=self.k2 / m2,
         )
 
     def system_matrix(self, m3: float) -> np.ndarray:
@@ -130,8 +138,9 @@ def _step_matrix(car: QuarterCar, m3: float, dt: float) -> np.ndarray:
     return np.array(step(*basis, 0.0, p1, p2, dt, car.coefficients(), True)[:6])
 
 
-def stable_dt_limit(car: QuarterCar = QuarterCar(), m3_min: float = 50.0, m3_max: float = 200.0,
-                    seat_spread: float = 0.0) -> float:
+def stable_dt_limit(
+    car: QuarterCar = QuarterCar(), m3_min: float = 50.0, m3_max: float = 200.0, seat_spread: float = 0.0
+) -> float:
     """Largest dt (s) for which the semi-implicit Euler step is stable (spectral radius <= 1) for m3 in range
     and, with ``seat_spread`` s, C3 and K3 anywhere in car.c3 * [1 - s, 1 + s] and car.k3 * [1 - s, 1 + s].
 
@@ -142,8 +151,9 @@ def stable_dt_limit(car: QuarterCar = QuarterCar(), m3_min: float = 50.0, m3_max
     cars = [replace(car, c3=car.c3 * a, k3=car.k3 * b) for a in ends for b in ends]
 
     def stable(dt: float) -> bool:
-        return all(max(abs(np.linalg.eigvals(_step_matrix(c, m, dt)))) <= 1.0 + 1e-12
-                   for c in cars for m in (m3_min, m3_max))
+        return all(
+            max(abs(np.linalg.eigvals(_step_matrix(c, m, dt)))) <= 1.0 + 1e-12 for c in cars for m in (m3_min, m3_max)
+        )
 
     lo, hi = 1e-5, 1e-5
     while stable(hi) and hi < 10.0:
@@ -178,8 +188,10 @@ def simulate(
     """
     check_measurement(measurement)
     if measurement not in STEPPED:
-        raise ValueError(f"measurement = {measurement!r}: simulate steps eq. 11 ({', '.join(STEPPED)}); "
-                         "continuous recordings come from physics.exact")
+        raise ValueError(
+            f"measurement = {measurement!r}: simulate steps eq. 11 ({', '.join(STEPPED)}); "
+            "continuous recordings come from physics.exact"
+        )
     if not dt > 0:
         raise ValueError(f"dt = {dt} must be > 0")
     road = np.asarray(road, dtype=float)

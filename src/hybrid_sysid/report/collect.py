@@ -17,12 +17,22 @@ from pathlib import Path
 import pandas as pd
 import yaml
 
-from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.runs.records import RECORD
+from hybrid_sysid.runs.rundir import RunDir
 
 HEAD = ["run", "status", "error", "seed"]
-TAIL = ["split", "noise_std", "windows", "parameter", "mean_rel_dev", "std_rel_dev", "n", "steps", "train_seconds",
-        "threads"]
+TAIL = [
+    "split",
+    "noise_std",
+    "windows",
+    "parameter",
+    "mean_rel_dev",
+    "std_rel_dev",
+    "n",
+    "steps",
+    "train_seconds",
+    "threads",
+]
 RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
 
 
@@ -91,8 +101,15 @@ def _overrides(items) -> dict[str, str]:
 def _rows_of(run_dir: Path, name: str) -> list[dict]:
     try:
         rec = json.loads((run_dir / RECORD).read_text())
-        base = {"run": name, "status": str(rec["status"]), "error": rec.get("error"), "seed": rec.get("seed"),
-                "steps": rec.get("steps"), "train_seconds": rec.get("train_seconds"), "threads": rec.get("threads")}
+        base = {
+            "run": name,
+            "status": str(rec["status"]),
+            "error": rec.get("error"),
+            "seed": rec.get("seed"),
+            "steps": rec.get("steps"),
+            "train_seconds": rec.get("train_seconds"),
+            "threads": rec.get("threads"),
+        }
         overrides = _overrides(rec.get("overrides"))
         results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
     except (OSError, ValueError, TypeError, KeyError, AttributeError) as exc:
@@ -100,8 +117,12 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
         # known configuration and lands in the right row of the table
         overrides = _overrides(_yaml(RunDir(run_dir).overrides_file))
         seed = overrides.get("seed", "")
-        base = {"run": name, "status": "unreadable", "error": f"{type(exc).__name__}: {exc}",
-                "seed": int(seed) if seed.lstrip("-").isdigit() else None}
+        base = {
+            "run": name,
+            "status": "unreadable",
+            "error": f"{type(exc).__name__}: {exc}",
+            "seed": int(seed) if seed.lstrip("-").isdigit() else None,
+        }
         results = []
     overrides.pop("seed", None)  # the record's own seed column is authoritative
     # a key named like a fixed column (unlikely) is prefixed rather than allowed to overwrite it
@@ -171,10 +192,22 @@ def load_predictions(root: Path, df: pd.DataFrame, split: str = "test") -> pd.Da
             p = p[p.split == split]
             for name in ("p1", "p2"):
                 dev = (p[f"{name}_true"] - p[f"{name}_pred"]).abs() / p[f"{name}_true"].abs()
-                frames.append(pd.DataFrame({"run": run, "noise_std": p.noise_std.astype(float),
-                                            "windows": p.windows.astype(int), "recording": p.recording,
-                                            "parameter": name, "rel_dev": dev}))
+                frames.append(
+                    pd.DataFrame(
+                        {
+                            "run": run,
+                            "noise_std": p.noise_std.astype(float),
+                            "windows": p.windows.astype(int),
+                            "recording": p.recording,
+                            "parameter": name,
+                            "rel_dev": dev,
+                        }
+                    )
+                )
         except (OSError, ValueError, KeyError, AttributeError):
             continue
-    return pd.concat(frames, ignore_index=True) if frames else pd.DataFrame(
-        columns=["run", "noise_std", "windows", "recording", "parameter", "rel_dev"])
+    return (
+        pd.concat(frames, ignore_index=True)
+        if frames
+        else pd.DataFrame(columns=["run", "noise_std", "windows", "recording", "parameter", "rel_dev"])
+    )

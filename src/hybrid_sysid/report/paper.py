@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 
 from hybrid_sysid.core.files import write_atomic
-from hybrid_sysid.report.collect import load_runs, natural_key, run_choices, row_keys
+from hybrid_sysid.report.collect import load_runs, natural_key, row_keys, run_choices
 from hybrid_sysid.report.protocol import protocol
 from hybrid_sysid.report.tables import K_LEVEL, markdown_table
 
@@ -41,10 +41,14 @@ _L_TRAIN = "sec. 3.1, text on Figs. 6-9 (training set, step 500,000)"
 _L_TEST = "sec. 3.1, text on Figs. 10-13 (test set, step 500,000)"
 _U_TRAIN = "sec. 3.2, text on Figs. 14-17 (training set, step 500,000)"
 _U_TEST = "sec. 3.2, text on Figs. 18-21 (test set, step 500,000)"
-_L_NOISY = ("sec. 3.3, text on Figs. 22-25: \"For both p1 and p2 the test deviation lies between 26-28% "
-            "throughout the training process\"")
-_U_NOISY = ("sec. 3.3, text on Figs. 26-29: \"The noisy test data results in a relative deviation of around "
-            "16%\", one figure for both parameters")
+_L_NOISY = (
+    'sec. 3.3, text on Figs. 22-25: "For both p1 and p2 the test deviation lies between 26-28% '
+    'throughout the training process"'
+)
+_U_NOISY = (
+    'sec. 3.3, text on Figs. 26-29: "The noisy test data results in a relative deviation of around '
+    '16%", one figure for both parameters'
+)
 
 # (objective, split, noise_std, parameter) -> the paper's figure
 PAPER: dict[tuple[str, str, float, str], PaperFigure] = {
@@ -73,8 +77,7 @@ PAPER_PROTOCOL: dict[str, str] = {
     "speed": "not stated",
     "window": "500 steps (sec. 2.4)",
     "measurement": "eq. 12: accelerations from the states at step k",
-    "test noise std": "clean, and N(0, 0.01) on both channels (eq. 25); the captions of Figs. 22-29 write "
-                      "sigma = 0.01",
+    "test noise std": "clean, and N(0, 0.01) on both channels (eq. 25); the captions of Figs. 22-29 write sigma = 0.01",
     "training noise std": "none: trained on clean data (sec. 3.3)",
     "seeds": "one training per objective; no seeds or repeats reported",
     "training time per run": "not stated",
@@ -91,13 +94,15 @@ def constant_guess(m3_min: int = 50, m3_max: int = 200) -> float:
     return float(min(np.abs(1 - m / mk).mean() for mk in m))
 
 
-LEGEND = ("Paper: mu as printed (\"26-28\": the paper gives only that range; \"≈16\": \"around 16%\", one figure "
-          "for both parameters). Ours: mean ± sample std (ddof=1) over seeds of each run's mean relative deviation, "
-          "without ± for a single seed. σ: std of the relative deviation over the recordings of the split (the "
-          "paper's sigma; ours: mean over seeds). Rows the paper reports and we did not run leave our other keys "
-          "blank. Noise levels are standard deviations in m/s^2; our other levels, if any, are in summary.md. "
-          f"For scale: the best constant prediction for the paper's seat masses scores {100 * constant_guess():.1f}% "
-          "on either parameter.")
+LEGEND = (
+    'Paper: mu as printed ("26-28": the paper gives only that range; "≈16": "around 16%", one figure '
+    "for both parameters). Ours: mean ± sample std (ddof=1) over seeds of each run's mean relative deviation, "
+    "without ± for a single seed. σ: std of the relative deviation over the recordings of the split (the "
+    "paper's sigma; ours: mean over seeds). Rows the paper reports and we did not run leave our other keys "
+    "blank. Noise levels are standard deviations in m/s^2; our other levels, if any, are in summary.md. "
+    f"For scale: the best constant prediction for the paper's seat masses scores {100 * constant_guess():.1f}% "
+    "on either parameter."
+)
 PARAMETERS = tuple(dict.fromkeys(p for *_, p in PAPER))  # ("p1", "p2"), read off the table above
 _STATS = [f"{p} {s}" for p in PARAMETERS for s in ("mean", "sd", "sigma")]
 
@@ -120,20 +125,33 @@ def reproduction_table(df: pd.DataFrame, root: Path) -> pd.DataFrame:
     parts = []
     if len(done):
         g = done.groupby(keys + ["parameter"])
-        stats = pd.concat({"mean": g.mean_rel_dev.mean(), "sd": g.mean_rel_dev.std(ddof=1),
-                           "sigma": g.std_rel_dev.mean()}, axis=1).unstack("parameter")
+        stats = pd.concat(
+            {"mean": g.mean_rel_dev.mean(), "sd": g.mean_rel_dev.std(ddof=1), "sigma": g.std_rel_dev.mean()}, axis=1
+        ).unstack("parameter")
         stats.columns = [f"{p} {s}" for s, p in stats.columns]
         parts.append(stats.assign(seeds=done.groupby(keys).run.nunique()).reset_index())
     ran = set(zip(done.split, done.noise_std, done.objective))
     missing = sorted({(s, n, o) for o, s, n, _ in PAPER if (s, n, o) not in ran})
     if missing:
-        parts.append(pd.DataFrame([{"split": s, "noise_std": n, "objective": o, **dict.fromkeys(extra, ""),
-                                    "seeds": 0} for s, n, o in missing]))
+        parts.append(
+            pd.DataFrame(
+                [
+                    {"split": s, "noise_std": n, "objective": o, **dict.fromkeys(extra, ""), "seeds": 0}
+                    for s, n, o in missing
+                ]
+            )
+        )
     rows = pd.concat(parts, ignore_index=True).reindex(columns=keys + _STATS + ["seeds"])
     objectives = list(OBJECTIVES) + sorted(set(rows.objective) - set(OBJECTIVES))
-    order = sorted(range(len(rows)), key=lambda i: (
-        PAPER_SPLITS.index(rows.split.iloc[i]), rows.noise_std.iloc[i], objectives.index(rows.objective.iloc[i]),
-        natural_key(tuple(rows[extra].iloc[i]))))
+    order = sorted(
+        range(len(rows)),
+        key=lambda i: (
+            PAPER_SPLITS.index(rows.split.iloc[i]),
+            rows.noise_std.iloc[i],
+            objectives.index(rows.objective.iloc[i]),
+            natural_key(tuple(rows[extra].iloc[i])),
+        ),
+    )
     return rows.iloc[order].reset_index(drop=True)
 
 
@@ -141,8 +159,15 @@ def comparison_markdown(df: pd.DataFrame, root: Path) -> str:
     """The paper's figures beside ours as a markdown table (see reproduction_table), in percent."""
     rt = reproduction_table(df, root)
     extra = [c for c in rt.columns if c not in ["split", "noise_std", "objective", "seeds", *_STATS]]
-    header = ["split", "noise std", "objective", *extra, *(f"{p} {w}" for p in PARAMETERS for w in ("paper", "ours")),
-              *(f"{p} σ {w}" for p in PARAMETERS for w in ("paper", "ours")), "seeds"]
+    header = [
+        "split",
+        "noise std",
+        "objective",
+        *extra,
+        *(f"{p} {w}" for p in PARAMETERS for w in ("paper", "ours")),
+        *(f"{p} σ {w}" for p in PARAMETERS for w in ("paper", "ours")),
+        "seeds",
+    ]
     pct = lambda v: "not run" if pd.isna(v) else f"{100 * v:.2f}"  # noqa: E731
     rows = []
     for _, r in rt.iterrows():
@@ -164,14 +189,29 @@ def reproduction_markdown(paths) -> str:
     proto = protocol(df, root)
     n_runs, n_done = df.run.nunique(), df[df.status == "completed"].run.nunique()
     shown = ", ".join(f"`{p}`" for p in ([paths] if isinstance(paths, (str, Path)) else paths))
-    lines = ["# Reproduction: Sokolowski et al. (2020), the paper's figures beside ours", "",
-             f"Runs: {n_runs} under {shown} ({n_done} completed, {n_runs - n_done} failed or unreadable).", "",
-             "## Protocol", "", markdown_table(["", "paper", "ours"], [
-                 [label, paper, proto.get(label, "not recorded")] for label, paper in PAPER_PROTOCOL.items()], 3),
-             "## Mean relative deviation [%]", "", comparison_markdown(df, root), LEGEND, "",
-             "Where the paper's figures are:", ""]
-    lines += [f"- {w}" for w in dict.fromkeys(f"{o}, {s}, noise {n:g}: {fig.where}" for (o, s, n, _), fig in
-                                              PAPER.items())]
+    lines = [
+        "# Reproduction: Sokolowski et al. (2020), the paper's figures beside ours",
+        "",
+        f"Runs: {n_runs} under {shown} ({n_done} completed, {n_runs - n_done} failed or unreadable).",
+        "",
+        "## Protocol",
+        "",
+        markdown_table(
+            ["", "paper", "ours"],
+            [[label, paper, proto.get(label, "not recorded")] for label, paper in PAPER_PROTOCOL.items()],
+            3,
+        ),
+        "## Mean relative deviation [%]",
+        "",
+        comparison_markdown(df, root),
+        LEGEND,
+        "",
+        "Where the paper's figures are:",
+        "",
+    ]
+    lines += [
+        f"- {w}" for w in dict.fromkeys(f"{o}, {s}, noise {n:g}: {fig.where}" for (o, s, n, _), fig in PAPER.items())
+    ]
     return "\n".join(lines) + "\n"
 
 

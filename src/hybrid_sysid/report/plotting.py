@@ -20,8 +20,9 @@ def save_figure(fig, path: Path, title: str) -> None:
     plt.close(fig)
 
 
-def curves_figure(curves: pd.DataFrame, path: Path, title: str, y: str = "mean_rel_dev",
-                  ylabel: str = "mean relative deviation") -> None:
+def curves_figure(
+    curves: pd.DataFrame, path: Path, title: str, y: str = "mean_rel_dev", ylabel: str = "mean relative deviation"
+) -> None:
     """One panel per parameter, one line per ``label`` (in order of first appearance): y against step, log y.
     curves: columns label, parameter, step and y."""
     params = sorted(curves["parameter"].unique())

@@ -27,16 +27,25 @@ def _describe(cfg: dict, choices: dict) -> dict[str, str | None]:
     choice = choices.get(group)
     d = {"model": f"{choice} ({target})" if choice and target else choice or target or None}
     if group == "model" and g("model.optim.name") is not None:
-        d["optimiser"] = f"{g('model.optim.name')}, lr {_fmt(g('model.optim.lr'))}, {g('model.optim.schedule')} " \
-                         f"schedule, batch {g('model.batch_size')}"
+        d["optimiser"] = (
+            f"{g('model.optim.name')}, lr {_fmt(g('model.optim.lr'))}, {g('model.optim.schedule')} "
+            f"schedule, batch {g('model.batch_size')}"
+        )
     if g("data.n_roads") is not None:
-        d["data"] = f"{g('data.n_roads')} roads x {g('data.n_masses')} masses x {g('data.n_steps')} steps " \
-                    f"(train fraction {_fmt(g('data.train_fraction'))} of the roads, validation " \
-                    f"{_fmt(g('data.val_fraction'))} of those)"
+        d["data"] = (
+            f"{g('data.n_roads')} roads x {g('data.n_masses')} masses x {g('data.n_steps')} steps "
+            f"(train fraction {_fmt(g('data.train_fraction'))} of the roads, validation "
+            f"{_fmt(g('data.val_fraction'))} of those)"
+        )
     if isinstance(g("data.dt"), (int, float)):
         d["dt"] = f"{1000 * g('data.dt'):g} ms"
-    for key, label in (("data.speed", "speed"), ("data.window", "window"), ("data.measurement", "measurement"),
-                       ("noise.eval_std", "test noise std"), ("noise.train_std", "training noise std")):
+    for key, label in (
+        ("data.speed", "speed"),
+        ("data.window", "window"),
+        ("data.measurement", "measurement"),
+        ("noise.eval_std", "test noise std"),
+        ("noise.train_std", "training noise std"),
+    ):
         if g(key) is not None:
             d[label] = _fmt(g(key)) + {"speed": " m/s", "window": " steps"}.get(label, "")
     if g("data.m3_min") is not None:
@@ -80,6 +89,5 @@ def protocol(df: pd.DataFrame, root: Path) -> dict[str, str]:
 
 def one_line(p: dict[str, str]) -> str:
     """A compact protocol sentence for a results page."""
-    keys = ["model", "optimiser", "steps", "seeds", "data", "dt", "measurement", "training noise std",
-            "test noise std"]
+    keys = ["model", "optimiser", "steps", "seeds", "data", "dt", "measurement", "training noise std", "test noise std"]
     return "; ".join(f"{k} {p[k]}" for k in keys if k in p) + "."

@@ -36,19 +36,31 @@ def _title(df: pd.DataFrame, path: Path) -> tuple[str, str]:
     return title, re.sub(r"[^A-Za-z0-9_.-]+", "_", name).strip("_") or "sweep"
 
 
-def write_results(file, paths, command: str, split: str = "test", metric: str = "mean_rel_dev",
-                  compare: str | None = None, reproduction: bool = False, notes=None,
-                  exclude=()) -> tuple[str, int, int]:
+def write_results(
+    file,
+    paths,
+    command: str,
+    split: str = "test",
+    metric: str = "mean_rel_dev",
+    compare: str | None = None,
+    reproduction: bool = False,
+    notes=None,
+    exclude=(),
+) -> tuple[str, int, int]:
     """Write the page and its figures (file's folder / figures / <section>.png); returns (text, number of runs,
     number of failed or unreadable runs). ``command`` is quoted in the header as the way to regenerate the page;
     ``notes``, a markdown file (the hand-written reading of the tables), is placed right after the header;
     ``exclude``: glob patterns of run names left out of every table (collect.load_runs)."""
     file = Path(file)
     figures = file.parent / "figures"
-    lines = ["# Results", "",
-             f"Generated from the run records by `{command}`; run it again to regenerate this page (and "
-             f"`{figures.name}/`), do not edit by hand. Cells: {METRICS[metric]} on the {split} split, percent, "
-             "mean ± sample standard deviation (ddof=1) over seeds.", ""]
+    lines = [
+        "# Results",
+        "",
+        f"Generated from the run records by `{command}`; run it again to regenerate this page (and "
+        f"`{figures.name}/`), do not edit by hand. Cells: {METRICS[metric]} on the {split} split, percent, "
+        "mean ± sample standard deviation (ddof=1) over seeds.",
+        "",
+    ]
     if notes is not None:  # read first: a missing file fails before anything is written
         lines += [f"<!-- from {Path(notes).as_posix()} -->", Path(notes).read_text(encoding="utf-8").strip(), ""]
     n_all, n_bad, used = 0, 0, set()
@@ -62,19 +74,31 @@ def write_results(file, paths, command: str, split: str = "test", metric: str = 
         used.add(slug)
         n_runs, n_done = df.run.nunique(), df[df.status == "completed"].run.nunique()
         n_all, n_bad = n_all + n_runs, n_bad + n_runs - n_done
-        lines += [f"## {title}", "",
-                  f"`{path}`: {n_runs} runs, {n_done} completed. " + one_line(protocol(df, root))
-                  + windows_note(df, table, split), "", to_markdown(table, compare=compare)]
+        lines += [
+            f"## {title}",
+            "",
+            f"`{path}`: {n_runs} runs, {n_done} completed. "
+            + one_line(protocol(df, root))
+            + windows_note(df, table, split),
+            "",
+            to_markdown(table, compare=compare),
+        ]
         if any(c[2] == "mean" for c in table.columns):
             figures.mkdir(parents=True, exist_ok=True)
-            write_atomic(figures / f"{slug}.png",
-                         lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
+            write_atomic(
+                figures / f"{slug}.png",
+                lambda p, table=table: sweep_figures.robustness_figure(table, p, metric=metric, split=split),
+            )
             lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
             if "scenario" in table.index.names:  # experiment=transfer: the bars of its rows per scenario
-                write_atomic(figures / f"{slug}_bars.png", lambda p: sweep_figures.transfer_figure(table, p))
+                write_atomic(
+                    figures / f"{slug}_bars.png", lambda p, table=table: sweep_figures.transfer_figure(table, p)
+                )
                 lines += [f"![transfer: {title}]({figures.name}/{slug}_bars.png)", ""]
             if "tuning" in table.index.names:  # experiment=tuned: default against tuned, and each search
-                write_atomic(figures / f"{slug}_tuning.png", lambda p: sweep_figures.tuning_figure(table, p))
+                write_atomic(
+                    figures / f"{slug}_tuning.png", lambda p, table=table: sweep_figures.tuning_figure(table, p)
+                )
                 lines += [f"![tuning: {title}]({figures.name}/{slug}_tuning.png)", "", tuning_markdown(path), ""]
         failed = failed_lines(df)
         if failed:

@@ -20,8 +20,7 @@ def predictions_figure(test: pd.DataFrame, path: Path, title: str) -> None:
     levels = sorted(test["noise_std"].unique())
     ks = sorted({1, int(test["windows"].max())})
     colours = {ks[0]: "tab:red", ks[-1]: "tab:blue"}
-    fig, axes = plt.subplots(len(levels), 2 * len(PARAMETERS), figsize=(16, 2.6 * len(levels) + 0.6),
-                             squeeze=False)
+    fig, axes = plt.subplots(len(levels), 2 * len(PARAMETERS), figsize=(16, 2.6 * len(levels) + 0.6), squeeze=False)
     for row, std in enumerate(levels):
         for j, name in enumerate(PARAMETERS):
             curve, hist = axes[row, 2 * j], axes[row, 2 * j + 1]
@@ -43,7 +42,8 @@ def predictions_figure(test: pd.DataFrame, path: Path, title: str) -> None:
 
 
 def write_run_figures(run_dir) -> None:
-    """figures/ of a run directory: test predictions at every noise level (test_predictions.png), and the learning curves (mean
+    """figures/ of a run directory: test predictions at every noise level (test_predictions.png), and the learning
+    curves (mean
     relative deviation against step, one line per split and noise level)."""
     run_dir = Path(run_dir)
     predictions = pd.read_csv(run_dir / "predictions.csv")

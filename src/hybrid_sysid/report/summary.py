@@ -10,8 +10,16 @@ import pandas as pd
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
-from hybrid_sysid.report.tables import (K_LEVEL, METRICS, compared_level, paired_deviations, row_label,
-                                        summary_table, to_latex, to_markdown)
+from hybrid_sysid.report.tables import (
+    K_LEVEL,
+    METRICS,
+    compared_level,
+    paired_deviations,
+    row_label,
+    summary_table,
+    to_latex,
+    to_markdown,
+)
 
 
 def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
@@ -30,16 +38,19 @@ def threads_warning(df: pd.DataFrame) -> str:
     counts = sorted(int(n) for n in done["threads"].dropna().unique()) if "threads" in done else []
     if len(counts) < 2:
         return ""
-    return (f"Warning: the runs used different torch thread counts ({', '.join(map(str, counts))}); the same "
-            "config gives slightly different numbers with other thread counts (set trainer.threads).")
+    return (
+        f"Warning: the runs used different torch thread counts ({', '.join(map(str, counts))}); the same "
+        "config gives slightly different numbers with other thread counts (set trainer.threads)."
+    )
 
 
 def failed_lines(df: pd.DataFrame) -> list[str]:
     """One markdown list item per failed or unreadable job (its swept values and seed, status and error)."""
     keys, lines = row_keys(df), []
     for _, r in df.drop_duplicates("run").query("status != 'completed'").iterrows():
-        config = ", ".join([f"{k}={r[k]}" for k in keys if r[k] != ""]
-                           + ([f"seed={r.seed}"] if pd.notna(r.seed) else []))
+        config = ", ".join(
+            [f"{k}={r[k]}" for k in keys if r[k] != ""] + ([f"seed={r.seed}"] if pd.notna(r.seed) else [])
+        )
         error = " ".join(str(r.error).split()) if pd.notna(r.error) else "no error recorded"
         lines.append(f"- `{r.run}` ({config}): {r.status}: {error}")
     return lines
@@ -67,8 +78,16 @@ def tested_table(df: pd.DataFrame, root: Path, split: str = "test", metric: str 
     return table
 
 
-def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mean_rel_dev", figures: bool = True,
-                  latex: bool = False, compare: str | None = None, exclude=()) -> tuple[pd.DataFrame, pd.DataFrame]:
+def write_summary(
+    sweep_dir,
+    paths=None,
+    split: str = "test",
+    metric: str = "mean_rel_dev",
+    figures: bool = True,
+    latex: bool = False,
+    compare: str | None = None,
+    exclude=(),
+) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Write sweep_dir/summary.csv, summary.md, with ``latex`` summary.tex, and figures/ from the runs at or
     below paths (default: sweep_dir), but those whose name (relative to the common parent, e.g. "0/search/3")
     matches a glob pattern of ``exclude``. ``compare``: the row key whose values the marks compare (default:
@@ -80,28 +99,40 @@ def write_summary(sweep_dir, paths=None, split: str = "test", metric: str = "mea
     compared_level(table, compare)  # a bad compare key fails before anything is written
     runs = df.drop_duplicates("run")
     n_bad = int((runs.status != "completed").sum())
-    md = [f"# Sweep summary: {METRICS[metric]} on the {split} split [%]", "",
-          f"{len(runs)} runs: {len(runs) - n_bad} completed, {n_bad} failed or unreadable. Cells: mean ± sample "
-          f"standard deviation (ddof=1) over seeds, [95% t interval].{windows_note(df, table, split)}", "",
-          to_markdown(table, compare=compare), *([threads_warning(df), ""] if threads_warning(df) else []),
-          "## Failed jobs", "", *(failed_lines(df) or ["None."])]
+    md = [
+        f"# Sweep summary: {METRICS[metric]} on the {split} split [%]",
+        "",
+        f"{len(runs)} runs: {len(runs) - n_bad} completed, {n_bad} failed or unreadable. Cells: mean ± sample "
+        f"standard deviation (ddof=1) over seeds, [95% t interval].{windows_note(df, table, split)}",
+        "",
+        to_markdown(table, compare=compare),
+        *([threads_warning(df), ""] if threads_warning(df) else []),
+        "## Failed jobs",
+        "",
+        *(failed_lines(df) or ["None."]),
+    ]
     sweep_dir.mkdir(parents=True, exist_ok=True)
     write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
     write_atomic(sweep_dir / "summary.md", lambda p: p.write_text("\n".join(md) + "\n", encoding="utf-8"))
     if latex:
         caption = f"{METRICS[metric]} on the {split} split [%], mean ± std over seeds"
-        write_atomic(sweep_dir / "summary.tex",
-                     lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"))
+        write_atomic(
+            sweep_dir / "summary.tex",
+            lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"),
+        )
     if figures:
         out = sweep_dir / "figures"
         out.mkdir(exist_ok=True)
         if any(c[2] == "mean" for c in table.columns):  # at least one completed run
-            write_atomic(out / "robustness.png",
-                         lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split))
+            write_atomic(
+                out / "robustness.png", lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split)
+            )
         curves = _curves(df, root)
         # runs record curves on train and test only: other splits fall back to test
         on = split if len(curves) and (curves["split"] == split).any() else "test"
         if len(curves) and (curves["split"] == on).any():
-            write_atomic(out / "learning_curves_compared.png",
-                         lambda p: sweep_figures.learning_curves_compared(curves, p, metric=metric, split=on))
+            write_atomic(
+                out / "learning_curves_compared.png",
+                lambda p: sweep_figures.learning_curves_compared(curves, p, metric=metric, split=on),
+            )
     return df, table

@@ -22,8 +22,8 @@ from typing import Any
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig
 
-from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.core.files import write_atomic
+from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.report.summary import threads_warning, write_summary
 from hybrid_sysid.report.sweep_figures import transfer_figure, tuning_figure
 from hybrid_sysid.report.tables import to_markdown
@@ -33,8 +33,14 @@ log = logging.getLogger("hybrid_sysid")
 
 
 class SweepSummary(Callback):
-    def __init__(self, reproduction: bool = False, compare: str | None = None, transfer_figure: bool = False,
-                 exclude=(), tuning_table: bool = False):
+    def __init__(
+        self,
+        reproduction: bool = False,
+        compare: str | None = None,
+        transfer_figure: bool = False,
+        exclude=(),
+        tuning_table: bool = False,
+    ):
         self.reproduction = reproduction
         self.compare = compare
         self.transfer_figure = transfer_figure
@@ -68,5 +74,6 @@ class SweepSummary(Callback):
         if len(failed):
             for _, row in failed.iterrows():
                 log.error("job %s %s: %s", row["run"], row["status"], row["error"])
-            raise SystemExit(f"{len(failed)} of {df.run.nunique()} jobs failed or were interrupted; summary in "
-                             f"{sweep_dir}")
+            raise SystemExit(
+                f"{len(failed)} of {df.run.nunique()} jobs failed or were interrupted; summary in {sweep_dir}"
+            )

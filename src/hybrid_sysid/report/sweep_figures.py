@@ -25,8 +25,15 @@ def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_d
         for label, row in table.iterrows():
             y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
             err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
-            ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3,
-                        label=row_label(table.index.names, label if isinstance(label, tuple) else (label,)))
+            ax.errorbar(
+                x,
+                y,
+                yerr=err,
+                marker="o",
+                ms=4,
+                capsize=3,
+                label=row_label(table.index.names, label if isinstance(label, tuple) else (label,)),
+            )
         noise_axis(ax, x, positive, METRICS[metric], param)
     axes[0, 0].legend(fontsize="small")
     save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds")
@@ -54,32 +61,48 @@ def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "me
     params = sorted({p for _, p, _ in cells})
     fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
     # with one objective swept it is no row level: one colour
-    rows = [{"objective": "", **dict(zip(table.index.names, label if isinstance(label, tuple) else (label,)))}
-            for label in table.index]
+    rows = [
+        {"objective": "", **dict(zip(table.index.names, label if isinstance(label, tuple) else (label,)))}
+        for label in table.index
+    ]
     colours = {o: f"C{i}" for i, o in enumerate(dict.fromkeys(r["objective"] for r in rows))}
     for ax, param in zip(axes[0], params):
         x = sorted(n for n, p, _ in cells if p == param)
         for keys, (_, row) in zip(rows, table.iterrows()):
             y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
             err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
-            ax.errorbar(x, y, yerr=err, marker="o", ms=4, capsize=3, color=colours[keys["objective"]],
-                        linestyle="--" if keys["tuning"] == "default" else "-",
-                        label=", ".join(v for v in (keys["objective"], keys["tuning"]) if v))
+            ax.errorbar(
+                x,
+                y,
+                yerr=err,
+                marker="o",
+                ms=4,
+                capsize=3,
+                color=colours[keys["objective"]],
+                linestyle="--" if keys["tuning"] == "default" else "-",
+                label=", ".join(v for v in (keys["objective"], keys["tuning"]) if v),
+            )
         noise_axis(ax, x, [n for n in x if n > 0], METRICS[metric], param)
     axes[0, 0].legend(fontsize="small")
     save_figure(fig, path, f"tuning: test split, K = {k}, mean ± std over seeds (dashed: default values)")
 
 
-def learning_curves_compared(curves: pd.DataFrame, path: Path, metric: str = "mean_rel_dev",
-                             split: str = "test") -> None:
+def learning_curves_compared(
+    curves: pd.DataFrame, path: Path, metric: str = "mean_rel_dev", split: str = "test"
+) -> None:
     """From the runs' curves.csv rows (with a 'label' column naming the table row): the metric on the split
     at noise 0 (or the lowest level recorded), mean over seeds per step, one line per label, one panel per
     parameter."""
     sub = curves[curves["split"] == split]
     noise = 0.0 if sub.empty or (sub["noise_std"] == 0).any() else sub["noise_std"].min()
     mean = sub[sub["noise_std"] == noise].groupby(["label", "parameter", "step"], as_index=False)[metric].mean()
-    curves_figure(mean, path, f"learning curves: {split} split, noise {noise:g}, mean over seeds", y=metric,
-                  ylabel=METRICS[metric])
+    curves_figure(
+        mean,
+        path,
+        f"learning curves: {split} split, noise {noise:g}, mean over seeds",
+        y=metric,
+        ylabel=METRICS[metric],
+    )
 
 
 def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int = 1) -> None:
@@ -91,8 +114,7 @@ def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int 
         table = table.xs(k, level="K")
     params = [p for n, p, s in table.columns if s == "mean" and n == noise]
     scenarios = list(dict.fromkeys(table.index.get_level_values("scenario")))
-    fig, axes = plt.subplots(1, len(scenarios), figsize=(3.6 * len(scenarios) + 1, 4.2), sharey=True,
-                             squeeze=False)
+    fig, axes = plt.subplots(1, len(scenarios), figsize=(3.6 * len(scenarios) + 1, 4.2), sharey=True, squeeze=False)
     width = 0.8 / max(len(params), 1)
     for ax, scenario in zip(axes[0], scenarios):
         sub = table.xs(scenario, level="scenario")
@@ -100,8 +122,7 @@ def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int 
         for j, param in enumerate(params):
             mean = 100 * sub[(noise, param, "mean")].astype(float).to_numpy()
             err = 100 * sub[(noise, param, "std")].astype(float).fillna(0.0).to_numpy()
-            ax.bar([i + (j - (len(params) - 1) / 2) * width for i in x], mean, width, yerr=err, capsize=3,
-                   label=param)
+            ax.bar([i + (j - (len(params) - 1) / 2) * width for i in x], mean, width, yerr=err, capsize=3, label=param)
         ax.set_xticks(list(x), [str(r) for r in sub.index], rotation=30, ha="right", fontsize="small")
         ax.set_xlim(-0.5, max(len(sub), 3) - 0.5)  # bars as wide in a one-row panel as in the others
         ax.set(title=scenario, yscale="log")

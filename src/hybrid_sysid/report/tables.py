@@ -37,7 +37,8 @@ ALPHA = 0.05  # the paired test's level for †
 def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel_dev") -> pd.DataFrame:
     """From collect's long form. Rows: the swept values other than seed ("all" if none vary), plus a level "K"
     when rows sharing those values hold more than one windows value. Columns (noise_std, parameter, stat): stat
-    "mean", "std" (ddof=1), "ci_low" and "ci_high" (t_interval) of the metric over the completed seeds; then ("n_seeds", "", "") counting completed
+    "mean", "std" (ddof=1), "ci_low" and "ci_high" (t_interval) of the metric over the completed seeds; then
+    ("n_seeds", "", "") counting completed
     runs (with a K level: completed runs with results at that K) and ("n_failed", "", "") counting the others."""
     if metric not in METRICS:
         raise ValueError(f"metric={metric!r} is not one of {list(METRICS)}")
@@ -55,15 +56,19 @@ def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel
         ks = sorted(sub[K_LEVEL].dropna().unique())
         index = pd.MultiIndex.from_tuples([(*_as_tuple(c), k) for c in counts.index for k in ks], names=rows)
         seeds = sub.groupby(rows).run.nunique().reindex(index).fillna(0).astype(int)
-        counts = pd.DataFrame({"n_seeds": seeds.to_numpy(), "n_failed": np.repeat(counts.n_failed.to_numpy(),
-                                                                                  len(ks))}, index=index)
+        counts = pd.DataFrame(
+            {"n_seeds": seeds.to_numpy(), "n_failed": np.repeat(counts.n_failed.to_numpy(), len(ks))}, index=index
+        )
     counts.columns = pd.MultiIndex.from_tuples([(c, "", "") for c in counts.columns])
 
     names = ["noise_std", "parameter", "stat"]
     if len(sub):
-        stat = sub.groupby(rows + names[:2])[metric].agg(mean="mean", std=lambda s: s.std(ddof=1),
-                                                         ci_low=lambda s: t_interval(s)[0],
-                                                         ci_high=lambda s: t_interval(s)[1])
+        stat = sub.groupby(rows + names[:2])[metric].agg(
+            mean="mean",
+            std=lambda s: s.std(ddof=1),
+            ci_low=lambda s: t_interval(s)[0],
+            ci_high=lambda s: t_interval(s)[1],
+        )
         cells = stat.stack().unstack(names[:2] + [-1]).sort_index(axis=1)  # noise, parameter, mean|std
     else:
         cells = pd.DataFrame(index=counts.index, columns=pd.MultiIndex.from_tuples([], names=names))
@@ -134,7 +139,8 @@ def cell_columns(table: pd.DataFrame) -> list[tuple]:
 
 def compared_level(table: pd.DataFrame, compare: str | None = None) -> str | None:
     """The index level whose values are compared: ``compare`` if given, else ``objective`` when it is a level,
-    else ``row`` (experiment=transfer's table) when it is one, else the first level that is not K. None for the single "all" row."""
+    else ``row`` (experiment=transfer's table) when it is one, else the first level that is not K. None for the
+    single "all" row."""
     names = [str(n) for n in table.index.names]
     if compare is not None:
         if compare not in names:
@@ -157,15 +163,21 @@ def compare_marks(table: pd.DataFrame, compare: str | None = None, paired: dict 
     paired = table.attrs.get("paired") if paired is None else paired
     cols = cell_columns(table)
     # no completed cell (every job failed): an empty frame of the right index, not a constructor error
-    marks = pd.DataFrame("", index=table.index, columns=pd.MultiIndex.from_tuples(cols)) if cols \
+    marks = (
+        pd.DataFrame("", index=table.index, columns=pd.MultiIndex.from_tuples(cols))
+        if cols
         else pd.DataFrame(index=table.index)
+    )
     level = compared_level(table, compare)
     if level is None or not cols:
         return marks
     others = [n for n in table.index.names if n != level]
     frame = table.index.to_frame(index=False)
-    groups = [g.index.to_numpy() for _, g in frame.groupby(others, sort=False, dropna=False)] if others \
+    groups = (
+        [g.index.to_numpy() for _, g in frame.groupby(others, sort=False, dropna=False)]
+        if others
         else [np.arange(len(table))]
+    )
     for j, col in enumerate(cols):
         mean = table[(*col, "mean")].astype(float).to_numpy()
         std = table[(*col, "std")].astype(float).to_numpy()
@@ -212,29 +224,37 @@ def legend(table: pd.DataFrame, compare: str | None = None, latex: bool = False)
     """The lines under a table: the interval, the marking rule (and which test made the marks), and a warning
     for rows with fewer than MIN_SEEDS seeds."""
     esc = _tex if latex else str
-    bold, dagger, rule = (r"\textbf{Bold}", r"$^\dagger$", r"$|m_a - m_b| > s_a + s_b$") if latex \
+    bold, dagger, rule = (
+        (r"\textbf{Bold}", r"$^\dagger$", r"$|m_a - m_b| > s_a + s_b$")
+        if latex
         else ("**Bold**", DAGGER, "`|m_a - m_b| > s_a + s_b`")
+    )
     lines = []
     level = compared_level(table, compare)
     if level is not None and cell_columns(table):
-        spread = (f"its gap to the bold cell exceeds the combined seed spread, {rule} (s: std over seeds, ddof=1)")
+        spread = f"its gap to the bold cell exceeds the combined seed spread, {rule} (s: std over seeds, ddof=1)"
         if table.attrs.get("paired"):
-            test = (f"a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) on the per-recording relative "
-                    f"deviations, averaged over seeds, finds it worse than the bold cell at p < {ALPHA:g} (the rows "
-                    f"share their test recordings; the test takes recordings, not seeds, as the sample); where "
-                    f"rows do not share them, {spread}")
+            test = (
+                f"a two-sided Wilcoxon signed-rank test (scipy.stats.wilcoxon) on the per-recording relative "
+                f"deviations, averaged over seeds, finds it worse than the bold cell at p < {ALPHA:g} (the rows "
+                f"share their test recordings; the test takes recordings, not seeds, as the sample); where "
+                f"rows do not share them, {spread}"
+            )
         else:
             test = spread
-        lines.append(f"{bold}: lowest mean in its column among rows that differ only in "
-                     f"{esc(level) if latex else f'`{level}`'}; {dagger}: {test}; unmarked: not worse by that "
-                     "rule, or fewer than 2 seeds without a paired test. "
-                     f"[a, b]: {CONFIDENCE:.0%} Student t interval of the mean over seeds."
-                     .replace("%", r"\%" if latex else "%"))
+        lines.append(
+            f"{bold}: lowest mean in its column among rows that differ only in "
+            f"{esc(level) if latex else f'`{level}`'}; {dagger}: {test}; unmarked: not worse by that "
+            "rule, or fewer than 2 seeds without a paired test. "
+            f"[a, b]: {CONFIDENCE:.0%} Student t interval of the mean over seeds.".replace("%", r"\%" if latex else "%")
+        )
     few = [(label, int(n)) for label, n in table[("n_seeds", "", "")].items() if n < MIN_SEEDS]
     if few:
-        lines.append(f"Warning: fewer than {MIN_SEEDS} seeds in "
-                     + "; ".join(f"{esc(row_label(table.index.names, _as_tuple(label)))} ({n})" for label, n in few)
-                     + ": the spread over seeds is unreliable there.")
+        lines.append(
+            f"Warning: fewer than {MIN_SEEDS} seeds in "
+            + "; ".join(f"{esc(row_label(table.index.names, _as_tuple(label)))} ({n})" for label, n in few)
+            + ": the spread over seeds is unreliable there."
+        )
     return lines
 
 
@@ -265,9 +285,11 @@ def _rows(table: pd.DataFrame, compare: str | None, cell) -> list[list[str]]:
             mean, std = row[(n, p, "mean")], row[(n, p, "std")]
             low, high = (row[(n, p, "ci_low")], row[(n, p, "ci_high")]) if has_ci else (math.nan, math.nan)
             ci = None if pd.isna(low) else f"[{100 * low:.2f}, {100 * high:.2f}]"
-            cells.append("n/a" if pd.isna(mean) else
-                         cell(f"{100 * mean:.2f}", None if pd.isna(std) else f"{100 * std:.2f}", ci,
-                              marks.iloc[i, j]))
+            cells.append(
+                "n/a"
+                if pd.isna(mean)
+                else cell(f"{100 * mean:.2f}", None if pd.isna(std) else f"{100 * std:.2f}", ci, marks.iloc[i, j])
+            )
         out.append(_shown(_as_tuple(label)) + cells + [str(int(row[(c, "", "")])) for c in ("n_seeds", "n_failed")])
     return out
 
@@ -275,8 +297,9 @@ def _rows(table: pd.DataFrame, compare: str | None, cell) -> list[list[str]]:
 def markdown_table(header: list[str], rows: list[list[str]], n_left: int) -> str:
     """A GitHub markdown table (pandas' to_markdown, through tabulate), its first n_left columns left-aligned
     and the others right-aligned; cells are shown as given (no number parsing)."""
-    frame = pd.DataFrame([[str(c).replace("|", "\\|") for c in r] for r in rows],
-                         columns=[str(h).replace("|", "\\|") for h in header])
+    frame = pd.DataFrame(
+        [[str(c).replace("|", "\\|") for c in r] for r in rows], columns=[str(h).replace("|", "\\|") for h in header]
+    )
     align = ["left"] * n_left + ["right"] * (len(header) - n_left)
     return frame.to_markdown(index=False, colalign=align, disable_numparse=True) + "\n"
 
@@ -285,11 +308,15 @@ def to_markdown(table: pd.DataFrame, compare: str | None = None) -> str:
     """A GitHub markdown table: one column per (noise, parameter) with "mean ± std" over seeds in percent, then
     the counts of completed seeds and failed jobs; the best row of each column in bold and † where the gap to it
     exceeds the seed spread; the rule and the few-seeds warning under the table."""
-    header = [str(n) for n in table.index.names] + [f"noise {n:g} {p} [%]" for n, p in cell_columns(table)] \
+    header = (
+        [str(n) for n in table.index.names]
+        + [f"noise {n:g} {p} [%]" for n, p in cell_columns(table)]
         + ["seeds", "failed"]
+    )
     notes = legend(table, compare)
-    return markdown_table(header, _rows(table, compare, _md_cell), table.index.nlevels) \
-        + ("\n" + "\n\n".join(notes) + "\n" if notes else "")
+    return markdown_table(header, _rows(table, compare, _md_cell), table.index.nlevels) + (
+        "\n" + "\n\n".join(notes) + "\n" if notes else ""
+    )
 
 
 def to_latex(table: pd.DataFrame, compare: str | None = None, caption: str | None = None) -> str:
@@ -298,12 +325,16 @@ def to_latex(table: pd.DataFrame, compare: str | None = None, caption: str | Non
     text."""
     cols = cell_columns(table)
     nl = table.index.nlevels
-    header = [_tex(str(n)) for n in table.index.names] + [f"{n:g} {_tex(str(p))}" for n, p in cols] \
-        + ["seeds", "failed"]
+    header = (
+        [_tex(str(n)) for n in table.index.names] + [f"{n:g} {_tex(str(p))}" for n, p in cols] + ["seeds", "failed"]
+    )
     rows = [[_tex(v) for v in row[:nl]] + row[nl:] for row in _rows(table, compare, _tex_cell)]
     frame = pd.DataFrame(rows, columns=header)
     body = frame.style.hide(axis="index").to_latex(
-        column_format="l" * nl + "r" * (len(header) - nl), hrules=True,
-        caption=_tex(caption) if caption else None, position_float="centering" if caption else None)
+        column_format="l" * nl + "r" * (len(header) - nl),
+        hrules=True,
+        caption=_tex(caption) if caption else None,
+        position_float="centering" if caption else None,
+    )
     notes = legend(table, compare, latex=True)
     return body + ("\n" + "\n\n".join(notes) + "\n" if notes else "")

@@ -1,5 +1,6 @@
 """experiment=tuned's searches as a table: per job (objective), the validation figure of the default values
-(trial 0) and of the best trial, and the best values (hybrid_sysid.experiments.tuned writes them to <job>/search/best.yaml)."""
+(trial 0) and of the best trial, and the best values (hybrid_sysid.experiments.tuned writes them to
+<job>/search/best.yaml)."""
 
 from __future__ import annotations
 
@@ -33,9 +34,19 @@ def tuning_markdown(paths) -> str:
     rows = []
     for job, b in found:
         label = " ".join(o for o in b.get("overrides") or [] if o not in shared) or job
-        rows.append([label, b.get("monitor", ""), f"{b['completed']}/{b['n_trials']}", _g(b["default"]["value"]),
-                     _g(b["best"]["value"]), str(b["best"]["trial"]),
-                     *(_g(b["best"]["params"].get(k)) for k in params)])
-    return ("Searches: the validation figure each objective's model selection uses (lower is better), of its "
-            "default values and of its best trial, and the best trial's values.\n\n"
-            + markdown_table(header, rows, n_left=2))
+        rows.append(
+            [
+                label,
+                b.get("monitor", ""),
+                f"{b['completed']}/{b['n_trials']}",
+                _g(b["default"]["value"]),
+                _g(b["best"]["value"]),
+                str(b["best"]["trial"]),
+                *(_g(b["best"]["params"].get(k)) for k in params),
+            ]
+        )
+    return (
+        "Searches: the validation figure each objective's model selection uses (lower is better), of its "
+        "default values and of its best trial, and the best trial's values.\n\n"
+        + markdown_table(header, rows, n_left=2)
+    )

@@ -32,10 +32,26 @@ def write_record(run_dir: Path, record: dict) -> None:
     write_json_atomic(Path(run_dir) / RECORD, record)
 
 
-def run_record(status: str, overrides: list[str], seed: int, steps: int = 0, train_seconds: float = 0.0,
-               results: list[dict] | None = None, error: str | None = None, **extra) -> dict:
-    return {"status": status, "error": error, "overrides": list(overrides), "seed": seed, "steps": steps,
-            "train_seconds": round(train_seconds, 2), "results": results or [], **extra}
+def run_record(
+    status: str,
+    overrides: list[str],
+    seed: int,
+    steps: int = 0,
+    train_seconds: float = 0.0,
+    results: list[dict] | None = None,
+    error: str | None = None,
+    **extra,
+) -> dict:
+    return {
+        "status": status,
+        "error": error,
+        "overrides": list(overrides),
+        "seed": seed,
+        "steps": steps,
+        "train_seconds": round(train_seconds, 2),
+        "results": results or [],
+        **extra,
+    }
 
 
 def read_record(run_dir: Path) -> dict:
@@ -59,6 +75,8 @@ def previous_record(run_dir: Path, overrides) -> dict | None:
     wanted = [o for o in overrides if not o.startswith("resume=")]
     had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
     if sorted(had) != sorted(wanted):
-        raise ValueError(f"run directory {run_dir} holds a completed run of other overrides ({' '.join(had)}); "
-                         "choose another hydra.run.dir / hydra.sweep.dir")
+        raise ValueError(
+            f"run directory {run_dir} holds a completed run of other overrides ({' '.join(had)}); "
+            "choose another hydra.run.dir / hydra.sweep.dir"
+        )
     return record

@@ -23,8 +23,14 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import flatten
 from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.core.files import write_yaml_atomic
-from hybrid_sysid.runs.records import (RECORD, CompletedRecordError, completed_record, previous_record, run_record,
-                                       write_record)
+from hybrid_sysid.runs.records import (
+    RECORD,
+    CompletedRecordError,
+    completed_record,
+    previous_record,
+    run_record,
+    write_record,
+)
 
 log = logging.getLogger("hybrid_sysid")
 CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
@@ -65,8 +71,10 @@ class RunDir:
     def saved_config(self, key: str) -> DictConfig:
         """The composed config the run saved; ConfigError naming ``key`` when it has none."""
         if not self.config_file.is_file():
-            raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: it has no {CONFIG} (a run directory "
-                              "written by hybrid-sysid)")
+            raise ConfigError(
+                f"{key} = {str(self.path)!r} is not allowed: it has no {CONFIG} (a run directory "
+                "written by hybrid-sysid)"
+            )
         return OmegaConf.load(self.config_file)
 
     def write_config(self, cfg: DictConfig, overrides: list[str]) -> None:
@@ -80,8 +88,10 @@ class RunDir:
         for name in CHECKPOINTS:
             if (self.checkpoints / name).is_file():
                 return self.checkpoints / name
-        raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: it holds no checkpoints/"
-                          f"{' or '.join(CHECKPOINTS)} (a run directory of hybrid-sysid that trained a network)")
+        raise ConfigError(
+            f"{key} = {str(self.path)!r} is not allowed: it holds no checkpoints/"
+            f"{' or '.join(CHECKPOINTS)} (a run directory of hybrid-sysid that trained a network)"
+        )
 
     def resume_checkpoint(self) -> Path | None:
         """The checkpoint to resume from: last.ckpt; best.ckpt when last.ckpt is damaged (both hold the full
@@ -116,13 +126,21 @@ class RunDir:
             return
         now = flatten(OmegaConf.to_container(cfg, resolve=False))
         was = flatten(saved if isinstance(saved, dict) else {})
-        differ = [k for k in sorted(set(now) | set(was))
-                  if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")]
+        differ = [
+            k
+            for k in sorted(set(now) | set(was))
+            if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")
+        ]
         if differ:
-            shown = "; ".join(f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here"
-                              for k in differ[:3])
-            bad("resume", str(self.path), f"it holds a run of another config ({shown}"
-                f"{'; ...' if len(differ) > 3 else ''}); resume with the run's own values")
+            shown = "; ".join(
+                f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here" for k in differ[:3]
+            )
+            bad(
+                "resume",
+                str(self.path),
+                f"it holds a run of another config ({shown}"
+                f"{'; ...' if len(differ) > 3 else ''}); resume with the run's own values",
+            )
 
     def completed_record(self) -> dict | None:
         return completed_record(self.path)
@@ -143,8 +161,10 @@ class RunDir:
                 self.path.mkdir(parents=True, exist_ok=True)
                 self.write_record(run_record(status, overrides, seed, error=error))
             except (OSError, CompletedRecordError) as exc:
-                print(f"error: could not record the {status} job in {self.path}: {type(exc).__name__}: {exc}",
-                      file=sys.stderr)
+                print(
+                    f"error: could not record the {status} job in {self.path}: {type(exc).__name__}: {exc}",
+                    file=sys.stderr,
+                )
         return {"status": status, "error": error}
 
 

@@ -31,10 +31,18 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
     if objective is None and cfg.get("baseline") is None:
         objective = build_objective(cfg)
     d = cfg.data
-    return QuarterCarDataModule(DatasetSpec.from_config(cfg), cache_dir=d.cache_dir, window=d.window,
-                                batch_size=cfg.model.batch_size, train_fraction=d.train_fraction,
-                                val_fraction=d.val_fraction, train_std=cfg.noise.train_std, seed=cfg.seed,
-                                integration=d.integration, fir=getattr(objective, "fir", None))
+    return QuarterCarDataModule(
+        DatasetSpec.from_config(cfg),
+        cache_dir=d.cache_dir,
+        window=d.window,
+        batch_size=cfg.model.batch_size,
+        train_fraction=d.train_fraction,
+        val_fraction=d.val_fraction,
+        train_std=cfg.noise.train_std,
+        seed=cfg.seed,
+        integration=d.integration,
+        fir=getattr(objective, "fir", None),
+    )
 
 
 def build_model(cfg: DictConfig) -> IdentificationModule:
@@ -42,9 +50,16 @@ def build_model(cfg: DictConfig) -> IdentificationModule:
     ``${p_prior:...}``, hybrid_sysid.config.resolvers) in an IdentificationModule."""
     net = instantiate(cfg.model.net, _convert_="all")
     o = cfg.model.optim
-    return IdentificationModule(net, build_objective(cfg), optimizer=o.name, lr=o.lr, weight_decay=o.weight_decay,
-                                schedule=o.schedule, max_steps=cfg.trainer.max_steps,
-                                warmup_fraction=o.warmup_fraction)
+    return IdentificationModule(
+        net,
+        build_objective(cfg),
+        optimizer=o.name,
+        lr=o.lr,
+        weight_decay=o.weight_decay,
+        schedule=o.schedule,
+        max_steps=cfg.trainer.max_steps,
+        warmup_fraction=o.warmup_fraction,
+    )
 
 
 def build_baseline(cfg: DictConfig):
@@ -62,11 +77,20 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         # Lightning redraws the bar every step by default; every 10th step reads as well and costs less
         callbacks.append(L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10))
     kwargs = dict(
-        max_steps=t.max_steps, val_check_interval=t.eval_every_n_steps, check_val_every_n_epoch=None,
-        accelerator=t.accelerator, devices=t.devices, deterministic=t.deterministic, logger=list(loggers) or False,
-        callbacks=callbacks, enable_progress_bar=t.progress_bar, enable_model_summary=False,
-        num_sanity_val_steps=0, default_root_dir=str(run_dir),
-        log_every_n_steps=LOG_EVERY)  # the steps on which the module logs its training loss
+        max_steps=t.max_steps,
+        val_check_interval=t.eval_every_n_steps,
+        check_val_every_n_epoch=None,
+        accelerator=t.accelerator,
+        devices=t.devices,
+        deterministic=t.deterministic,
+        logger=list(loggers) or False,
+        callbacks=callbacks,
+        enable_progress_bar=t.progress_bar,
+        enable_model_summary=False,
+        num_sanity_val_steps=0,
+        default_root_dir=str(run_dir),
+        log_every_n_steps=LOG_EVERY,
+    )  # the steps on which the module logs its training loss
     kwargs.update(t.get("extra", {}))
     kwargs.update(overrides)
     return L.Trainer(**kwargs)
@@ -91,9 +115,11 @@ def load_network(model: IdentificationModule, cfg: DictConfig, run_dir: Path, ke
     theirs = {k: v for k, v in OmegaConf.to_container(source.model.net).items() if k not in PRIOR_KEYS}
     if mine != theirs:
         diff = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
-        raise ConfigError(f"{key} = {str(run_dir)!r} is not allowed: its network differs from model.net in "
-                          + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff))
+        raise ConfigError(
+            f"{key} = {str(run_dir)!r} is not allowed: its network differs from model.net in "
+            + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff)
+        )
     path = run.trained_checkpoint(key)
     state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
-    model.net.load_state_dict({k[len("net."):]: v for k, v in state.items() if k.startswith("net.")})
+    model.net.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
     return path

@@ -13,8 +13,9 @@ from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.model.metrics import summarise
 
 
-def score(model: SplitPredictor, dm: QuarterCarDataModule, noise_levels,
-          windows=(1,)) -> tuple[list[dict], pd.DataFrame]:
+def score(
+    model: SplitPredictor, dm: QuarterCarDataModule, noise_levels, windows=(1,)
+) -> tuple[list[dict], pd.DataFrame]:
     """Relative deviations per split, noise level and K (test predictions averaged over K windows per
     recording; train and val on one window), plus one prediction row per recording and evaluation.
 
@@ -25,10 +26,22 @@ def score(model: SplitPredictor, dm: QuarterCarDataModule, noise_levels,
         pred, true = model.predict_split(dm, split, std, windows=k)
         results += summarise(pred, true, split=split, noise_std=std, windows=k)
         rows = dm.rows(split)
-        frames.append(pd.DataFrame({
-            "split": split, "noise_std": std, "windows": k, "recording": rows,
-            "road_class": dm.dataset.road_class[rows], "m3": dm.dataset.m3[rows], "p1_true": true[:, 0],
-            "p1_pred": pred[:, 0], "p2_true": true[:, 1], "p2_pred": pred[:, 1]}))
+        frames.append(
+            pd.DataFrame(
+                {
+                    "split": split,
+                    "noise_std": std,
+                    "windows": k,
+                    "recording": rows,
+                    "road_class": dm.dataset.road_class[rows],
+                    "m3": dm.dataset.m3[rows],
+                    "p1_true": true[:, 0],
+                    "p1_pred": pred[:, 0],
+                    "p2_true": true[:, 1],
+                    "p2_pred": pred[:, 1],
+                }
+            )
+        )
     return results, pd.concat(frames, ignore_index=True)
 
 
@@ -46,8 +59,9 @@ def by_road_class(predictions: pd.DataFrame) -> list[dict]:
 def class_table(rows: list[dict]) -> str:
     if not rows:
         return ""
-    table = pd.DataFrame(rows).pivot_table(index=["noise_std", "windows"], columns=["parameter", "road_class"],
-                                           values="mean_rel_dev")
+    table = pd.DataFrame(rows).pivot_table(
+        index=["noise_std", "windows"], columns=["parameter", "road_class"], values="mean_rel_dev"
+    )
     return "test mean rel. dev. [%] per road class\n" + (table * 100).round(2).to_string()
 
 

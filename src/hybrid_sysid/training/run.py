@@ -23,8 +23,14 @@ from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.runs.records import run_record
 from hybrid_sysid.runs.rundir import RunDir
-from hybrid_sysid.training.build import (build_baseline, build_datamodule, build_model, build_trainer, load_network,
-                                         monitor_of)
+from hybrid_sysid.training.build import (
+    build_baseline,
+    build_datamodule,
+    build_model,
+    build_trainer,
+    load_network,
+    monitor_of,
+)
 from hybrid_sysid.training.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
 from hybrid_sysid.training.evaluation import by_road_class, class_table, console_table, score, write_outputs
 from hybrid_sysid.training.tracking import build_loggers, finish, hyperparameters
@@ -32,8 +38,14 @@ from hybrid_sysid.training.tracking import build_loggers, finish, hyperparameter
 log = logging.getLogger("hybrid_sysid")
 
 
-def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | None = None,
-          run_name: str | None = None, checked: bool = False) -> dict:
+def train(
+    cfg: DictConfig,
+    run_dir: str | Path,
+    overrides=(),
+    experiment: str | None = None,
+    run_name: str | None = None,
+    checked: bool = False,
+) -> dict:
     """Fit and evaluate one configuration (or evaluate its baseline); write metrics.json, curves.csv,
     predictions.csv. ``experiment`` and ``run_name`` name the run in an experiment tracker
     (hybrid_sysid.training.tracking.build_loggers). ``checked``: the caller has validated ``cfg`` (the command
@@ -61,8 +73,14 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | 
     dm = build_datamodule(cfg, model.objective)
     monitor = monitor_of(cfg, model.objective)
 
-    ckpt = RunCheckpoint(dirpath=run.checkpoints, filename="best", monitor=monitor, mode="min",
-                         save_last=True, auto_insert_metric_name=False)
+    ckpt = RunCheckpoint(
+        dirpath=run.checkpoints,
+        filename="best",
+        monitor=monitor,
+        mode="min",
+        save_last=True,
+        auto_insert_metric_name=False,
+    )
     clock = TrainingClock()
     curves = LearningCurves(clock, _noise_levels(cfg), every_n_steps=cfg.trainer.get("curve_every_n_steps"))
     trainer = build_trainer(cfg, run.path, [clock, curves, ckpt], loggers)
@@ -80,13 +98,24 @@ def train(cfg: DictConfig, run_dir: str | Path, overrides=(), experiment: str | 
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
         model.load_state_dict(state)
     train_seconds = clock.seconds  # evaluations excluded, the time before a resume included
-    return _finish(cfg, run, overrides, model, dm, curves.rows, loggers, trainer.global_step,
-                   f"{trainer.global_step} steps in {train_seconds:.1f} s",
-                   train_seconds=train_seconds, monitor=monitor,
-                   best_checkpoint=Path(ckpt.best_model_path).name or None,
-                   best_score=None if ckpt.best_model_score is None else float(ckpt.best_model_score),
-                   devices=trainer.world_size, fit_seconds=round(fit_seconds, 2),
-                   **({"init_from": str(init)} if init else {}))
+    return _finish(
+        cfg,
+        run,
+        overrides,
+        model,
+        dm,
+        curves.rows,
+        loggers,
+        trainer.global_step,
+        f"{trainer.global_step} steps in {train_seconds:.1f} s",
+        train_seconds=train_seconds,
+        monitor=monitor,
+        best_checkpoint=Path(ckpt.best_model_path).name or None,
+        best_score=None if ckpt.best_model_score is None else float(ckpt.best_model_score),
+        devices=trainer.world_size,
+        fit_seconds=round(fit_seconds, 2),
+        **({"init_from": str(init)} if init else {}),
+    )
 
 
 def _run_baseline(cfg: DictConfig, run: RunDir, overrides, loggers) -> dict:
@@ -96,14 +125,26 @@ def _run_baseline(cfg: DictConfig, run: RunDir, overrides, loggers) -> dict:
     estimator = build_baseline(cfg)
     dm = build_datamodule(cfg)
     dm.setup()
-    return _finish(cfg, run, overrides, estimator, dm, [], loggers, 0,
-                   lambda: f"baseline {cfg.baseline._target_}, fits in {estimator.fit_seconds:.2f} s",
-                   train_seconds=lambda: estimator.fit_seconds, monitor=None, best_checkpoint=None,
-                   fit_seconds=lambda: round(estimator.fit_seconds, 2))
+    return _finish(
+        cfg,
+        run,
+        overrides,
+        estimator,
+        dm,
+        [],
+        loggers,
+        0,
+        lambda: f"baseline {cfg.baseline._target_}, fits in {estimator.fit_seconds:.2f} s",
+        train_seconds=lambda: estimator.fit_seconds,
+        monitor=None,
+        best_checkpoint=None,
+        fit_seconds=lambda: round(estimator.fit_seconds, 2),
+    )
 
 
-def evaluate_checkpoint(cfg: DictConfig, source: str | Path, run_dir: str | Path, overrides=(),
-                        checked: bool = False) -> dict:
+def evaluate_checkpoint(
+    cfg: DictConfig, source: str | Path, run_dir: str | Path, overrides=(), checked: bool = False
+) -> dict:
     """Score the trained network of the run ``source`` on the data of ``cfg`` (its saved config with other data,
     car, road, noise or evaluation: hybrid_sysid.cli.evaluate), without training; write the record (naming the
     source run), predictions.csv and an empty curves.csv into ``run_dir``."""
@@ -111,8 +152,10 @@ def evaluate_checkpoint(cfg: DictConfig, source: str | Path, run_dir: str | Path
         validate(cfg)
     source = Path(source)
     if cfg.get("baseline") is not None:
-        raise ConfigError(f"run = {str(source)!r} is not allowed: a baseline run (baseline._target_ = "
-                          f"{cfg.baseline._target_}) has no trained network to evaluate")
+        raise ConfigError(
+            f"run = {str(source)!r} is not allowed: a baseline run (baseline._target_ = "
+            f"{cfg.baseline._target_}) has no trained network to evaluate"
+        )
     model = build_model(cfg)
     checkpoint = load_network(model, cfg, source, "run")
     run, done = _open(cfg, run_dir, overrides)
@@ -122,8 +165,19 @@ def evaluate_checkpoint(cfg: DictConfig, source: str | Path, run_dir: str | Path
     dm.setup()
     record = RunDir(source).record_file
     steps = json.loads(record.read_text()).get("steps", 0) if record.is_file() else 0
-    return _finish(cfg, run, overrides, model, dm, [], (), steps, f"the network of {source}",
-                   source_run=str(source), checkpoint=checkpoint.name)
+    return _finish(
+        cfg,
+        run,
+        overrides,
+        model,
+        dm,
+        [],
+        (),
+        steps,
+        f"the network of {source}",
+        source_run=str(source),
+        checkpoint=checkpoint.name,
+    )
 
 
 def _open(cfg: DictConfig, run_dir, overrides) -> tuple[RunDir, dict | None]:
@@ -140,8 +194,7 @@ def _open(cfg: DictConfig, run_dir, overrides) -> tuple[RunDir, dict | None]:
     return run, None
 
 
-def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, loggers, step: int, what,
-            **fields) -> dict:
+def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, loggers, step: int, what, **fields) -> dict:
     """The end every run shares: score the model on the noise levels and K values of the config, write
     predictions.csv, curves.csv and the record (``fields`` added to it; a callable is read after scoring), close
     the trackers, print the table. Returns the record."""
@@ -150,12 +203,14 @@ def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, logg
     write_outputs(run.path, predictions, pd.DataFrame(curve_rows, columns=CURVE_COLUMNS))
     classes = by_road_class(predictions)
     fields = {k: v() if callable(v) else v for k, v in fields.items()}
-    record = run_record("completed", overrides, cfg.seed, steps=step, results=results, threads=threads,
-                        by_road_class=classes, **fields)
+    record = run_record(
+        "completed", overrides, cfg.seed, steps=step, results=results, threads=threads, by_road_class=classes, **fields
+    )
     run.write_record(record)
     finish(loggers, results, step)
-    log.info("run %s: %s\n%s\n%s", run.path, what() if callable(what) else what, console_table(results),
-             class_table(classes))
+    log.info(
+        "run %s: %s\n%s\n%s", run.path, what() if callable(what) else what, console_table(results), class_table(classes)
+    )
     return record
 
 

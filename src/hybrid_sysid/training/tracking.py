@@ -20,8 +20,7 @@ from hybrid_sysid.config import flatten
 SINGLE_RUNS = "runs"  # the MLflow experiment of runs outside a sweep
 
 
-def build_loggers(cfg: DictConfig, run_dir: Path, experiment: str | None = None,
-                  run_name: str | None = None) -> list:
+def build_loggers(cfg: DictConfig, run_dir: Path, experiment: str | None = None, run_name: str | None = None) -> list:
     """The config's loggers; a null save_dir is the run directory, a null MLflow experiment_name is
     ``experiment`` (the sweep) or "runs", a null run_name is ``run_name`` or the run directory's name."""
     out = []
@@ -67,8 +66,9 @@ def curve_metrics(rows: Iterable[dict]) -> dict[str, float]:
 
 def result_metrics(results: Iterable[dict]) -> dict[str, float]:
     """The record's results as metrics: final/<split>/noise_<std>/K<windows>/<parameter>_mean_rel_dev."""
-    return _as_metrics(results, lambda r: f"final/{r['split']}/noise_{r['noise_std']:g}/K{r.get('windows', 1)}/"
-                                          f"{r['parameter']}")
+    return _as_metrics(
+        results, lambda r: f"final/{r['split']}/noise_{r['noise_std']:g}/K{r.get('windows', 1)}/{r['parameter']}"
+    )
 
 
 def log_metrics(loggers: Sequence, metrics: dict[str, float], step: int) -> None:
