@@ -133,6 +133,26 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
 
 
+def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run):
+    """hybrid-sysid-eval's preflight refuses, before Hydra writes .hydra/, a directory that holds a completed run
+    of other overrides; the run's saved config and record stay as they were."""
+    saved = {p: p.read_bytes() for p in (reference_run / ".hydra").iterdir()}
+    rec = (reference_run / "metrics.json").read_bytes()
+    cli = [
+        sys.executable,
+        "-m",
+        "hybrid_sysid.cli.evaluate",
+        f"run={reference_run}",
+        "car=soft_seat",
+        f"hydra.run.dir={reference_run}",
+    ]
+    proc = subprocess.run(cli, cwd=tmp_path, env=env_for(tmp_path), capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "holds a completed run of other overrides" in proc.stderr and len(proc.stderr.splitlines()) == 1
+    assert {p: p.read_bytes() for p in (reference_run / ".hydra").iterdir()} == saved
+    assert (reference_run / "metrics.json").read_bytes() == rec
+
+
 def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, reference_run):
     out = tmp_path / "eval"
     # the default data: simulating it (an empty cache) outlasts the signal's way there
