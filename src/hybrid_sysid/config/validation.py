@@ -20,6 +20,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config.schema import SECTIONS
+from hybrid_sysid.config.targets import arguments, build, check_target
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.options import MONITORS, OPTIMIZERS, SCHEDULES, TASKS
 from hybrid_sysid.data.dataset import CHANNELS
@@ -196,12 +197,12 @@ def _one_line(exc: BaseException) -> str:
 
 
 def _built(cfg: DictConfig, key: str):
-    """The object at ``key`` (model.net, objective, baseline) built by its own constructor, whose checks name
-    their argument: a ConfigError naming the config key otherwise."""
-    from hydra.utils import instantiate
-
+    """The object at ``key`` (model.net, objective) built by its own constructor, whose checks name their
+    argument: a ConfigError naming the config key otherwise."""
     try:
-        return instantiate(OmegaConf.select(cfg, key), _convert_="all")
+        return build(OmegaConf.select(cfg, key), key)
+    except ConfigError:
+        raise
     except Exception as exc:  # noqa: BLE001 - TypeError (unknown argument), ValueError (its own checks)...
         raise _named(exc, key) from exc
 
@@ -217,12 +218,10 @@ def _named(exc: BaseException, key: str) -> ConfigError:
 def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
     """The network (its shortest window, then built and run on one window) and the objective (built: its filter
     must fit the window), before any data is simulated."""
-    from hydra.utils import get_class
-
-    net_cfg = OmegaConf.to_container(cfg.model.net, resolve=True)
+    cls, net_args = arguments(cfg.model.net, "model.net")
     try:
-        shortest = get_class(net_cfg.pop("_target_")).shortest_window(**net_cfg)
-    except Exception as exc:  # noqa: BLE001 - not a class of ours, or not importable
+        shortest = cls.shortest_window(**net_args)
+    except Exception as exc:  # noqa: BLE001 - e.g. a value of the wrong type
         raise _named(exc, "model.net") from exc
     objective = _built(cfg, "objective")
     fir = getattr(objective, "fir", None)
@@ -239,10 +238,7 @@ def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
 
 def _validate_baseline(cfg: DictConfig, spec: DatasetSpec) -> None:
     """A baseline (no network) checks its own arguments when built, and its band-pass against the lengths."""
-    from hydra.utils import get_class
-
-    kwargs = OmegaConf.to_container(cfg.baseline, resolve=True)
-    cls = get_class(kwargs.pop("_target_"))
+    cls, kwargs = arguments(cfg.baseline, "baseline")
     if kwargs.get("unknown") == "m3" and spec.seat_spread > 0:
         bad(
             "baseline.unknown",
@@ -268,6 +264,7 @@ def validate_loggers(cfg: DictConfig) -> None:
         target = str(lg.get("_target_", "")) if isinstance(lg, DictConfig) else ""
         if not target:
             bad(f"logger.{name}", lg, "a mapping with the _target_ of a Lightning logger (see conf/logger)")
+        check_target(target, f"logger.{name}")
         needs = next((mods for cls, mods in LOGGER_MODULES.items() if target.endswith("." + cls)), ())
         if needs and not any(importlib.util.find_spec(m) for m in needs):
             raise ConfigError(f"logger.{name} needs the {needs[0]} package, which is not installed: {LOGGERS_EXTRA}")

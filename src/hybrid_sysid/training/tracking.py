@@ -12,10 +12,10 @@ from pathlib import Path
 from typing import Iterable, Sequence
 
 from filelock import FileLock
-from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import flatten
+from hybrid_sysid.config.targets import build
 
 SINGLE_RUNS = "runs"  # the MLflow experiment of runs outside a sweep
 
@@ -24,7 +24,7 @@ def build_loggers(cfg: DictConfig, run_dir: Path, experiment: str | None = None,
     """The config's loggers; a null save_dir is the run directory, a null MLflow experiment_name is
     ``experiment`` (the sweep) or "runs", a null run_name is ``run_name`` or the run directory's name."""
     out = []
-    for lg in (cfg.get("logger") or {}).values():
+    for name, lg in (cfg.get("logger") or {}).items():
         fill = {}
         if "save_dir" in lg and lg.save_dir is None:
             fill["save_dir"] = str(run_dir)
@@ -38,10 +38,10 @@ def build_loggers(cfg: DictConfig, run_dir: Path, experiment: str | None = None,
             db = Path(uri.removeprefix("sqlite:///"))
             db.parent.mkdir(parents=True, exist_ok=True)
             with FileLock(str(db) + ".lock"):
-                logger = instantiate(lg, **fill)
+                logger = build(lg, f"logger.{name}", **fill)
                 logger.experiment  # noqa: B018 - the property creates the experiment and the run
         else:
-            logger = instantiate(lg, **fill)
+            logger = build(lg, f"logger.{name}", **fill)
         out.append(logger)
     return out
 

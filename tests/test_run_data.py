@@ -1,0 +1,91 @@
+"""A run directory is data, not code: a config whose _target_ names anything but this package's classes (or
+Lightning's loggers) is refused in one line, by every command that reads a run, before the target is imported."""
+
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+from omegaconf import OmegaConf
+
+from hybrid_sysid.config import ConfigError, validate
+
+
+class Touch:
+    """A pickle whose loading creates a file: what pandas.read_pickle would run."""
+
+    def __init__(self, path):
+        self.path = path
+
+    def __reduce__(self):
+        return Path.touch, (Path(self.path),)
+
+
+def planted(tiny_run, tmp_path, key, node) -> Path:
+    """A copy of a trained run whose saved config has ``node`` at ``key``."""
+    run = tmp_path / "received_run"
+    shutil.copytree(tiny_run, run)
+    cfg = OmegaConf.load(run / ".hydra" / "config.yaml")
+    OmegaConf.update(cfg, key, node, merge=False)
+    OmegaConf.save(cfg, run / ".hydra" / "config.yaml")
+    return run
+
+
+def payloads(tmp_path):
+    """(key, node, the file it would create) for each planted payload."""
+    marker = tmp_path / "pickle_ran"
+    (tmp_path / "x.pkl").write_bytes(pickle.dumps(Touch(marker)))
+    return [
+        ("objective", {"_target_": "pandas.read_pickle", "filepath_or_buffer": str(tmp_path / "x.pkl")}, marker),
+        ("model.net", {"_target_": "numpy.save", "file": str(tmp_path / "saved"), "arr": [1]}, tmp_path / "saved.npy"),
+        (
+            "objective",
+            {
+                "_target_": "hybrid_sysid.model.objectives.HybridObjective",
+                "filter": {"_target_": "pathlib.Path.touch", "self": str(tmp_path / "nested")},
+            },
+            tmp_path / "nested",
+        ),
+    ]
+
+
+@pytest.mark.parametrize("case", [0, 1, 2], ids=["read_pickle", "numpy.save", "nested"])
+def test_load_estimator_refuses_a_planted_target_and_runs_nothing(tiny_run, tmp_path, case):
+    from hybrid_sysid import load_estimator
+
+    key, node, marker = payloads(tmp_path)[case]
+    run = planted(tiny_run, tmp_path, key, node)
+    with pytest.raises(ValueError, match=rf"{key}(\.\w+)?\._target_ = '[\w.]+' is not allowed"):
+        load_estimator(run)
+    assert not marker.exists()
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("case", [0, 1], ids=["read_pickle", "numpy.save"])
+def test_evaluation_refuses_a_planted_target_before_anything_runs(tiny_run, tmp_path, case):
+    key, node, marker = payloads(tmp_path)[case]
+    run = planted(tiny_run, tmp_path, key, node)
+    out = tmp_path / "eval"
+    cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"run={run}", "car=soft_seat", f"hydra.run.dir={out}"]
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # the user's view: no traceback
+    proc = subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert f"{key}._target_" in proc.stderr and "is not allowed" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1
+    assert not marker.exists() and not out.exists()
+
+
+@pytest.mark.parametrize(
+    "override, match",
+    [
+        ("+logger.x._target_=os.getcwd", r"logger.x._target_ = 'os.getcwd' is not allowed"),
+        ("objective._target_=builtins.print", r"objective._target_ = 'builtins.print' is not allowed"),
+        ("model.net._target_=os.system", r"model.net._target_ = 'os.system' is not allowed"),
+    ],
+)
+def test_a_command_line_target_outside_the_package_is_refused(make_cfg, override, match):
+    with pytest.raises(ConfigError, match=match):
+        validate(make_cfg(override))
