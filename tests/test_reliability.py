@@ -98,6 +98,21 @@ def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, capl
     assert "resuming without comparing" in caplog.text
 
 
+def test_resume_reports_a_truncated_config_that_still_parses_as_damaged(tmp_path, make_cfg):
+    """A config cut at a line end still parses but lacks the keys after the cut: named as damaged, with the
+    command that rewrites it; a key it holds with another value is still another run."""
+    run = saved_run(tmp_path, make_cfg, *TINY)
+    path = run / ".hydra" / "config.yaml"
+    lines = path.read_text().splitlines()
+    cut = next(i for i, line in enumerate(lines) if line.startswith("trainer:"))
+    path.write_text("\n".join(lines[:cut]) + "\n")
+    with pytest.raises(ConfigError, match=r"config.yaml is damaged: it lacks \d+ keys \(car\.c2, ") as err:
+        RunDir(run).check_resume(make_cfg(*TINY), ["data=tiny", f"resume={run}"])
+    assert f"`hybrid-sysid data=tiny resume={run} --cfg job > {path}`" in str(err.value)
+    with pytest.raises(ConfigError, match=r"another config \(seed = 0 there, 1 here; car"):
+        RunDir(run).check_resume(make_cfg(*TINY, "seed=1"))
+
+
 # ---- a run's files, damaged --------------------------------------------------------------------------------------
 
 

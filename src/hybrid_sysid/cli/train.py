@@ -35,7 +35,7 @@ class TrainPreflight(Preflight):
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
         if cfg.get("resume"):
-            RunDir(str(cfg.resume)).check_resume(cfg)
+            RunDir(str(cfg.resume)).check_resume(cfg, overrides)
 
 
 def search_value(record: dict) -> float | None:

@@ -14,6 +14,7 @@ The sub-runs that experiments chain inside one job (experiment=transfer, experim
 
 from __future__ import annotations
 
+import json
 import logging
 import sys
 from pathlib import Path
@@ -69,13 +70,50 @@ class RunDir:
         return self.path / RECORD
 
     def saved_config(self, key: str) -> DictConfig:
-        """The composed config the run saved; ConfigError naming ``key`` when it has none."""
+        """The composed config the run saved; ConfigError naming ``key`` when it has none or it is damaged."""
         if not self.config_file.is_file():
             raise ConfigError(
                 f"{key} = {str(self.path)!r} is not allowed: it has no {CONFIG} (a run directory "
                 "written by hybrid-sysid)"
             )
-        return OmegaConf.load(self.config_file)
+        try:
+            cfg = OmegaConf.load(self.config_file)
+        except Exception as exc:  # noqa: BLE001 - yaml's errors are many classes; the message says which
+            raise ConfigError(
+                f"{key} = {str(self.path)!r} is not allowed: its {CONFIG} is damaged "
+                f"({type(exc).__name__}: {' '.join(str(exc).split())})"
+            ) from None
+        if not isinstance(cfg, DictConfig):
+            raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: its {CONFIG} is damaged (not a mapping)")
+        return cfg
+
+    def read_record(self, key: str) -> dict | None:
+        """The run's record, None when it has none; ConfigError naming ``key`` when it is damaged."""
+        if not self.record_file.is_file():
+            return None
+        try:
+            record = json.loads(self.record_file.read_text())
+        except (OSError, ValueError) as exc:
+            raise ConfigError(
+                f"{key} = {str(self.path)!r} is not allowed: its {RECORD} is damaged ({type(exc).__name__}: {exc})"
+            ) from None
+        if not isinstance(record, dict):
+            raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: its {RECORD} is damaged (not a mapping)")
+        return record
+
+    def load_weights(self, key: str) -> tuple[Path, dict]:
+        """The trained checkpoint (``trained_checkpoint``) and its state_dict; ConfigError naming ``key`` when it
+        cannot be read (truncated, another format)."""
+        import torch  # here: reading a run's layout loads no torch
+
+        path = self.trained_checkpoint(key)
+        try:
+            return path, torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
+        except Exception as exc:  # noqa: BLE001 - torch raises several classes for a damaged or foreign file
+            raise ConfigError(
+                f"{key} = {str(self.path)!r} is not allowed: its {path.relative_to(self.path)} cannot be read "
+                f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
+            ) from None
 
     def write_config(self, cfg: DictConfig, overrides: list[str]) -> None:
         """config.yaml and overrides.yaml, as Hydra writes them for a job before it starts."""
@@ -112,9 +150,11 @@ class RunDir:
             return self.checkpoints / "last.ckpt"
         return self.checkpoints / "best.ckpt" if ok.get("best.ckpt") else None
 
-    def check_resume(self, cfg: DictConfig) -> None:
+    def check_resume(self, cfg: DictConfig, overrides=()) -> None:
         """``resume=`` must name a run (its saved config, written before any of its work) of this config: every
-        value but those that cannot change the numbers (RESUME_FREE) the same. ConfigError naming the keys."""
+        value but those that cannot change the numbers (RESUME_FREE) the same. ConfigError naming the keys. A saved
+        config that parses but lacks keys (a truncated file) is reported as damaged, with the command that
+        rewrites it from ``overrides`` (this command's) when the keys it holds agree."""
         if not self.path.is_dir():
             bad("resume", str(self.path), "no such directory; give the directory of the run to continue")
         if not self.config_file.is_file():
@@ -131,9 +171,21 @@ class RunDir:
             for k in sorted(set(now) | set(was))
             if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")
         ]
+        held = [k for k in differ if k in was]
+        if differ and not held:  # every difference is a key the file lacks: a damaged file, not another run
+            lacking = [k for k in differ if k in now]
+            command = " ".join(["hybrid-sysid", *overrides, "--cfg", "job"])
+            bad(
+                "resume",
+                str(self.path),
+                f"its {CONFIG} is damaged: it lacks {len(lacking)} keys ({', '.join(lacking[:3])}"
+                f"{', ...' if len(lacking) > 3 else ''}) and the {len(was)} it holds agree with this config; "
+                f"rewrite it with `{command} > {self.config_file}` and resume again",
+            )
         if differ:
+            first = held + [k for k in differ if k not in held]  # values it holds first, then keys it lacks
             shown = "; ".join(
-                f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here" for k in differ[:3]
+                f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here" for k in first[:3]
             )
             bad(
                 "resume",

@@ -6,10 +6,9 @@ import logging
 from pathlib import Path
 
 import lightning as L
-import torch
-from hydra.utils import instantiate
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config.targets import build
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.spec import DatasetSpec
@@ -22,7 +21,7 @@ PRIOR_KEYS = ("p_min", "p_max", "p_scale")
 
 
 def build_objective(cfg: DictConfig):
-    return instantiate(cfg.objective, _convert_="all")
+    return build(cfg.objective, "objective")
 
 
 def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
@@ -48,7 +47,7 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
 def build_model(cfg: DictConfig) -> IdentificationModule:
     """The network and the objective of the config (their prior of p comes from the car and the mass range:
     ``${p_prior:...}``, hybrid_sysid.config.resolvers) in an IdentificationModule."""
-    net = instantiate(cfg.model.net, _convert_="all")
+    net = build(cfg.model.net, "model.net")
     o = cfg.model.optim
     return IdentificationModule(
         net,
@@ -64,7 +63,7 @@ def build_model(cfg: DictConfig) -> IdentificationModule:
 
 def build_baseline(cfg: DictConfig):
     """The baseline of ``baseline=`` (a model.base.SplitPredictor without a network)."""
-    return instantiate(cfg.baseline, _convert_="all")
+    return build(cfg.baseline, "baseline")
 
 
 def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **overrides) -> L.Trainer:
@@ -119,7 +118,11 @@ def load_network(model: IdentificationModule, cfg: DictConfig, run_dir: Path, ke
             f"{key} = {str(run_dir)!r} is not allowed: its network differs from model.net in "
             + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff)
         )
-    path = run.trained_checkpoint(key)
-    state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
-    model.net.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
+    path, state = run.load_weights(key)
+    try:
+        model.net.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
+    except RuntimeError as exc:  # torch lists every mismatched key: its first line names the problem
+        raise ConfigError(
+            f"{key} = {str(run_dir)!r} is not allowed: its weights do not fit model.net ({str(exc).splitlines()[0]})"
+        ) from None
     return path

@@ -9,7 +9,6 @@ process); the command-line entry points are hybrid_sysid.cli.
 
 from __future__ import annotations
 
-import json
 import logging
 import time
 from pathlib import Path
@@ -158,13 +157,12 @@ def evaluate_checkpoint(
         )
     model = build_model(cfg)
     checkpoint = load_network(model, cfg, source, "run")
+    steps = (RunDir(source).read_record("run") or {}).get("steps", 0)  # a damaged record fails here, before work
     run, done = _open(cfg, run_dir, overrides)
     if done is not None:  # a re-run sweep skips what it evaluated
         return done
     dm = build_datamodule(cfg, model.objective)
     dm.setup()
-    record = RunDir(source).record_file
-    steps = json.loads(record.read_text()).get("steps", 0) if record.is_file() else 0
     return _finish(
         cfg,
         run,
