@@ -27,6 +27,7 @@ from typing import Any, Callable
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
+from hybrid_sysid.cli.orphans import exit_with_parent
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.runs.records import CompletedRecordError
 from hybrid_sysid.runs.rundir import RunDir
@@ -141,6 +142,7 @@ def run_job(
         # or the launcher drops the jobs not yet started; remembered, it makes them record their interruption
         for s in SIGNALS:
             signal.signal(s, stop_sweep)
+        exit_with_parent()  # a parallel worker ends when the sweep's parent is gone (a no-op in other processes)
     received = _state["received"]
     if received is not None or (sweep_dir is not None and (sweep_dir / STOP_MARKER).exists()):
         # a signal came while Hydra composed and launched: do not start
