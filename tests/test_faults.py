@@ -11,6 +11,7 @@ import time
 import pandas as pd
 import pytest
 import torch
+from omegaconf import OmegaConf
 
 pytestmark = [pytest.mark.integration, pytest.mark.faults]
 
@@ -131,6 +132,26 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     same_numbers(uninterrupted, record(moved))
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
+
+
+@pytest.mark.parametrize("mode", ["run", "sweep"])
+def test_a_second_writer_is_refused_and_the_first_finishes_untouched(tmp_path, mode):
+    """One writer per run or sweep directory: while one command writes there, another into the same directory is
+    refused in one line, exit 2, before Hydra writes anything, and the first ends with its own config and record."""
+    where = tmp_path / "shared"
+    key = "hydra.run.dir" if mode == "run" else "hydra.sweep.dir"
+    sweep = ["-m", "launcher=basic"] if mode == "sweep" else []
+    first = launch(tmp_path, *sweep, *ARGS, "seed=0", f"{key}={where}")
+    config = where / ".hydra" / "config.yaml" if mode == "run" else where / "0" / ".hydra" / "config.yaml"
+    wait_for(config, first)
+    second = run_app(tmp_path, *sweep, *ARGS, "seed=1", f"{key}={where}")
+    assert second.returncode == 2, second.stderr[-2000:]
+    assert "another process is writing there" in second.stderr and len(second.stderr.strip().splitlines()) == 1
+    out, _ = first.communicate(timeout=600)
+    assert first.returncode == 0, out[-2000:]
+    job = where if mode == "run" else where / "0"
+    assert record(job)["status"] == "completed" and record(job)["seed"] == 0
+    assert OmegaConf.load(job / ".hydra" / "config.yaml").seed == 0
 
 
 def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run):

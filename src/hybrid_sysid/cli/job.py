@@ -30,13 +30,13 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 from hybrid_sysid.cli.orphans import exit_with_parent
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.runs.records import CompletedRecordError
-from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.rundir import RunDir, hold_for_writing
 
 log = logging.getLogger("hybrid_sysid")
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
 STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted, jobs not yet started skip
 # one process runs one command: what its signal handlers and its jobs share
-_state = {"received": None, "raised": False, "sweep_dir": None, "task_started": False}
+_state = {"received": None, "raised": False, "sweep_dir": None, "task_started": False, "locks": {}}
 
 
 class Interrupted(BaseException):
@@ -151,6 +151,14 @@ def run_job(
         if not multirun:
             sys.exit(128 + received)
         return result
+    mine = multirun and str(run_dir) not in _state["locks"]  # a single job's preflight holds it already
+    if mine:
+        try:
+            run_dir.mkdir(parents=True, exist_ok=True)
+            hold(run_dir, "the job's directory")
+        except (ConfigError, OSError) as exc:  # another process writes there: its files are not ours to touch
+            log.error("job not run: %s", exc)
+            return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     try:
         with interruptible():
             return work()
@@ -175,6 +183,9 @@ def run_job(
             if isinstance(exc, OSError):
                 fail(f"{error} (run directory {run_dir})", status=1)  # e.g. a full disk: one line
         raise
+    finally:
+        if mine:  # a worker runs several jobs: each job's directory is free again once it ends
+            release(run_dir)
 
 
 def task_config(cfg: DictConfig) -> DictConfig:
@@ -198,14 +209,19 @@ class Preflight(Callback):
         run_dir, overrides = Path(str(config.hydra.run.dir)), list(config.hydra.overrides.task)
         try:
             self.check(task_config(config), overrides)
+            make_dir(run_dir, "hydra.run.dir")
+            hold(run_dir, "hydra.run.dir")  # before Hydra writes .hydra/ there: one writer per directory
             RunDir(run_dir).previous_record(overrides)  # a completed run of other overrides
         except (ConfigError, ValueError) as exc:
             fail(str(exc))
-        make_dir(run_dir, "hydra.run.dir")
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = _state["sweep_dir"] = Path(str(config.hydra.sweep.dir))
         make_dir(sweep_dir, "hydra.sweep.dir")
+        try:
+            hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
+        except ConfigError as exc:
+            fail(str(exc))
         (sweep_dir / STOP_MARKER).unlink(missing_ok=True)  # a re-run continues an interrupted sweep
         saved = sweep_dir / "multirun.yaml"
         if not saved.is_file():
@@ -225,6 +241,22 @@ def _sweep_of(cfg: DictConfig) -> tuple:
     """What makes a sweep's jobs: its command-line overrides and the sweeper's parameters (an experiment's)."""
     params = cfg.hydra.sweeper.get("params")
     return sorted(cfg.hydra.overrides.task), OmegaConf.to_container(params) if params is not None else {}
+
+
+def hold(path: Path, key: str) -> None:
+    """This process's one-writer lock of a run or sweep directory, kept until the process ends (or ``release``).
+    A DDP rank above 0 (Lightning starts it with the same command, LOCAL_RANK set) shares its rank 0's directory,
+    which rank 0 holds."""
+    if os.environ.get("LOCAL_RANK", "0") != "0":
+        return
+    if str(path) not in _state["locks"]:
+        _state["locks"][str(path)] = hold_for_writing(path, key)
+
+
+def release(path: Path) -> None:
+    lock = _state["locks"].pop(str(path), None)
+    if lock is not None:
+        lock.release()
 
 
 def make_dir(path: Path, key: str) -> None:

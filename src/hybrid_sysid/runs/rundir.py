@@ -36,6 +36,7 @@ from hybrid_sysid.runs.records import (
 log = logging.getLogger("hybrid_sysid")
 CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
 CHECKPOINTS = ("best.ckpt", "last.ckpt")  # the weights a trained run is used with: best, else last
+WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one process that writes there
 # keys that cannot change a run's numbers: a resumed run may differ in them
 RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar"}
 
@@ -218,6 +219,23 @@ class RunDir:
                     file=sys.stderr,
                 )
         return {"status": status, "error": error}
+
+
+def hold_for_writing(path: Path, key: str):
+    """Take the one-writer lock of a run or sweep directory (an advisory flock on WRITER_LOCK inside it, released
+    when the holder releases it or ends, however it ends) and return it; ConfigError naming ``key`` when another
+    process holds it. The directory must exist."""
+    from filelock import FileLock, Timeout
+
+    lock = FileLock(str(Path(path) / WRITER_LOCK), timeout=0)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise ConfigError(
+            f"{key} = {path} is not allowed: another process is writing there (a run or sweep of hybrid-sysid); "
+            f"wait until it ends, or choose another {key}"
+        ) from None
+    return lock
 
 
 def _loadable(path: Path) -> bool:
