@@ -184,3 +184,89 @@ def test_importing_physics_or_the_app_does_not_load_torch():
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert "AttributeError: module 'hybrid_sysid' has no attribute 'nothing'" in done.stderr
     assert "torch loaded" not in done.stderr
+
+
+def test_bool_and_complex_arrays_are_refused(est):
+    """As float64 a bool array would read as 0 and 1 and a complex one lose its imaginary part."""
+    seat, body, _ = recordings(2, 300, est.dt)
+    with pytest.raises(InputError, match=r"^seat_acc has dtype bool; allowed: real numbers in m/s\^2 \(a float or "):
+        est.predict(seat[0] > 0, body[0], est.dt)
+    with pytest.raises(InputError, match=r"^body_acc has dtype complex128; allowed: .*, not bool or complex$"):
+        est.predict(seat, body + 0.5j, est.dt)
+    with pytest.raises(InputError, match=r"^seat_acc\[1\] has dtype complex128; allowed: real numbers"):
+        est.predict([seat[0], seat[1].astype(complex)], list(body), est.dt)
+    ints = np.round(seat * 1000).astype(np.int64)  # integer arrays are numbers (mm/s^2 * 1000 here)
+    got, want = est.predict(ints, body, est.dt), est.predict(ints.astype(np.float64), body, est.dt)
+    assert got.p1.to_numpy() == pytest.approx(want.p1.to_numpy(), rel=1e-12)
+
+
+def test_values_beyond_float32_are_refused(est):
+    """The network reads float32: 1e300 would become inf and the table NaN."""
+    seat, body, _ = recordings(2, 300, est.dt)
+    huge = seat.copy()
+    huge[0, 5] = 1e300
+    with pytest.raises(InputError, match=r"^seat_acc of recording 0 holds 1e\+300 at step 5: beyond float32's range"):
+        est.predict(huge, body, est.dt)
+    edge = body.copy()
+    edge[1, 9] = -float(np.finfo(np.float32).max) * (1 + 1e-6)
+    with pytest.raises(InputError, match=r"^body_acc of recording 1 holds -3.4028\de\+38 at step 9: .*up to 3.40282e"):
+        est.predict(seat, edge, est.dt)
+
+
+def test_an_estimate_that_is_not_finite_is_refused(est, monkeypatch):
+    """Values inside float32's range may still overflow the network's arithmetic (here a stand-in network that
+    returns NaN for a window holding a value above 1e30): no NaN row, an error naming the recording."""
+    import torch
+
+    class Overflowing(torch.nn.Module):
+        def forward(self, x):
+            p = torch.ones(len(x), 2)
+            return torch.where(x.abs().amax(dim=(1, 2))[:, None] > 1e30, torch.nan, p)
+
+    seat, body, _ = recordings(2, 300, est.dt)
+    monkeypatch.setattr(est, "net", Overflowing())
+    assert (est.predict(seat, body, est.dt)[["p1", "p2"]].to_numpy() == 1.0).all()
+    body[1, 150] = 1e31  # in every window of recording 1
+    with pytest.raises(
+        InputError,
+        match=r"^recording 1: the network's estimate is not finite \(p1 = nan, p2 = nan\): its values, up to "
+        r"1e\+31 m/s\^2 in body_acc, overflow the network's float32 arithmetic",
+    ):
+        est.predict(seat, body, est.dt)
+
+
+def test_windows_must_fit_in_the_memory_available(est, monkeypatch):
+    """Each window of 2 x 200 steps takes 3200 bytes as float64, twice (cut, then stacked), plus 1600 as float32
+    for the first 4096 (one chunk): 100 windows need 800000 bytes, 5000 need 5000 * 6400 + 4096 * 1600. The
+    refusal comes before anything that size is allocated."""
+    import tracemalloc
+
+    import hybrid_sysid.inference.estimator as estimator
+
+    seat, body, _ = recordings(2, 5300, est.dt)
+    available = [800_000]
+    monkeypatch.setattr(estimator, "available_memory", lambda: available[0])
+    assert est.predict(seat[0, :400], body[0, :400], est.dt, windows=100).windows.item() == 100
+    tracemalloc.start()
+    try:
+        with pytest.raises(
+            InputError,
+            match=r"^windows = 101 is not allowed for recording 0 \(400 steps\): 101 windows of 2 x 200 steps need "
+            r"0.000753 GiB of memory .* and 0.000745 GiB is available; allowed: 1 to 100$",
+        ):
+            est.predict(seat[0, :400], body[0, :400], est.dt, windows=101)
+        assert tracemalloc.get_traced_memory()[1] < 200_000  # the peak: far below the 808000 bytes refused
+    finally:
+        tracemalloc.stop()
+    two = ([seat[0, :400], seat[1, :500]], [body[0, :400], body[1, :500]])
+    with pytest.raises(
+        InputError, match=r"^windows = 51 is not allowed for 2 recordings \(the longest, 'b', 500 steps\): 102 windows"
+    ):
+        est.predict(*two, est.dt, windows=51, names=["a", "b"])
+    assert (est.predict(*two, est.dt, windows=50).windows == 50).all()
+    available[0] = 5000 * 6400 + 4096 * 1600
+    assert est.predict(seat[0], body[0], est.dt, windows=5000).windows.item() == 5000
+    with pytest.raises(InputError, match=r"windows = 5001 is not allowed .*; allowed: 1 to 5000$"):
+        est.predict(seat[0], body[0], est.dt, windows=5001)
+    available[0] = None  # unknown: no check
+    assert est.predict(seat[0], body[0], est.dt, windows=5001).windows.item() == 5001

@@ -1,10 +1,12 @@
 """hybrid-sysid-predict: files read back give the Python API's numbers; every bad input is one line on stderr
-and exit status 2."""
+and exit status 2; output= never replaces the input, a run's files or (without overwrite=true) any file."""
 
+import os
 import re
 import shutil
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -108,11 +110,10 @@ def test_dt_argument_stands_in_for_the_time_column(tiny_run, est, tmp_path, caps
     df["time"] = (df.time * 1.00001).round(4)  # a clock off by 10 ppm, written to 0.1 ms
     df.to_csv(rounded, index=False)
     for path in (no_time, rounded):
-        code, _, err = predict(
-            capsys, f"run={tiny_run}", f"input={path}", f"dt={est.dt}", f"output={tmp_path / 'out.csv'}"
-        )
+        out = tmp_path / f"out_{path.stem}.csv"
+        code, _, err = predict(capsys, f"run={tiny_run}", f"input={path}", f"dt={est.dt}", f"output={out}")
         assert code == 0, err
-        assert pd.read_csv(tmp_path / "out.csv").p1.item() == pytest.approx(want.p1.item(), rel=1e-6)
+        assert pd.read_csv(out).p1.item() == pytest.approx(want.p1.item(), rel=1e-6)
 
 
 def test_resample_true_reads_another_rate(tiny_run, est, tmp_path, capsys):
@@ -182,7 +183,42 @@ BAD_CSV = {  # name: (frame -> text written as the input file, message)
         r"recording 'b' has a time step of 0.0025 s, recording 'a' 0.005 s; allowed: one sample rate",
     ),
     "binary": (lambda df: b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe\xfd" * 50, r"bad.csv cannot be read as CSV \(Unicode"),
+    "beyond float32": (
+        lambda df: edit(df, seat_acc=(5, "1e300")).to_csv(index=False),
+        r"seat_acc of recording 0 holds 1e\+300 at step 5: beyond float32's range, in which the network reads it; "
+        r"allowed: magnitudes up to 3.40282e\+38",
+    ),
+    "beyond float32, negative": (
+        lambda df: edit(df, body_acc=(9, -3.5e38)).to_csv(index=False),
+        r"body_acc of recording 0 holds -3.5e\+38 at step 9: beyond float32's range",
+    ),
+    "column twice": (
+        lambda df: duplicated(df).to_csv(index=False),
+        r"input = .*bad.csv: column seat_acc appears 2 times in the header \(columns 2, 4\); allowed: each of "
+        r"seat_acc, body_acc, time, recording once",
+    ),
+    "column twice, spaced": (
+        lambda df: duplicated(df).to_csv(index=False).replace(",", ", ", 3),  # the header's three commas
+        r"column seat_acc appears 2 times in the header \(columns 2, 4\)",
+    ),
+    "time twice": (
+        lambda df: df.assign(t2=df.time).rename(columns={"t2": "time"}).to_csv(index=False),
+        r"column time appears 2 times in the header \(columns 1, 4\)",
+    ),
+    "true/false": (
+        lambda df: df.assign(seat_acc=np.where(df.seat_acc > 0, "True", "False")).to_csv(index=False),
+        r"input = .*bad.csv: column seat_acc holds (True|False) in data row 1; allowed: numbers, not true/false",
+    ),
+    "true/false with an empty cell": (
+        lambda df: df.assign(body_acc=[""] + ["true", "false"] * ((len(df) - 1) // 2) + ["true"]).to_csv(index=False),
+        r"column body_acc holds True in data row 2; allowed: numbers, not true/false",
+    ),
 }
+
+
+def duplicated(df):
+    """The frame with a second seat_acc column (another sensor's values) after body_acc."""
+    return df.assign(other=-df.seat_acc).rename(columns={"other": "seat_acc"})
 
 
 @pytest.mark.parametrize("case", list(BAD_CSV))
@@ -230,7 +266,7 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
         ),
         (
             (run, inp, "seed=3"),
-            r"unknown key 'seed' in 'seed=3'; allowed keys: run, input, output, windows, "
+            r"unknown key 'seed' in 'seed=3'; allowed keys: run, input, output, overwrite, windows, "
             r"resample, dt",
         ),
         ((run, inp, "windows"), r"argument 'windows' is not key=value"),
@@ -270,3 +306,189 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
 def test_help_prints_usage(capsys):
     code, out, _ = predict(capsys, "--help")
     assert code == 0 and "hybrid-sysid-predict run=DIR input=FILE" in out
+
+
+def files_under(folder):
+    """{path: bytes} of every file below folder (links followed), to show nothing changed or appeared."""
+    return {p: p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
+
+
+def test_output_never_replaces_the_input(tiny_run, est, tmp_path, capsys, monkeypatch):
+    """Its own path, another spelling of it, a symbolic and a hard link: refused with or without overwrite=true."""
+    seat, body, _ = recordings(1, 300, est.dt)
+    csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt)
+    (tmp_path / "sub").mkdir()
+    (tmp_path / "link.csv").symlink_to(csv)
+    os.link(csv, tmp_path / "hard.csv")
+    before = files_under(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    for output in (str(csv), "rec.csv", "./rec.csv", "sub/../rec.csv", "link.csv", "hard.csv"):
+        for extra in ((), ("overwrite=true",)):
+            code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", f"output={output}", *extra)
+            assert code == 2 and out == "", (output, extra, err)
+            assert err.splitlines() == [
+                f"hybrid-sysid-predict: error: output = {output} is the input file (input = {csv}); allowed: "
+                "another file, an output never replaces its input"
+            ]
+            assert files_under(tmp_path) == before, (output, extra)
+
+
+def test_output_never_replaces_a_runs_files(tiny_run, est, tmp_path, capsys):
+    """Inside run= (its files, a new file, a link to its record) or inside any directory above the output that
+    holds a run's record or config: refused with or without overwrite=true, every file as it was."""
+    seat, body, _ = recordings(1, 300, est.dt)
+    csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt)
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)  # a copy: a failing check must not damage the shared run
+    other = tmp_path / "other"
+    (other / "plots").mkdir(parents=True)
+    (other / "metrics.json").write_text('{"status": "completed"}\n')
+    configured = tmp_path / "configured"
+    (configured / ".hydra").mkdir(parents=True)
+    (configured / ".hydra" / "config.yaml").write_text("seed: 0\n")
+    (tmp_path / "to_record.csv").symlink_to(run / "metrics.json")
+    before = files_under(tmp_path)
+    assert run / "metrics.json" in before and run / "checkpoints" / "best.ckpt" in before
+    in_run = rf"lies inside the run directory run = {re.escape(str(run))}; allowed: a path outside run directories"
+    cases = [
+        (run / "metrics.json", in_run),
+        (run / "checkpoints" / "best.ckpt", in_run),
+        (run / ".hydra" / "config.yaml", in_run),
+        (run / "estimates.csv", in_run),
+        (tmp_path / "to_record.csv", in_run),
+        (other / "estimates.csv", r"lies inside the run directory .*other \(it holds metrics.json\); allowed: a path"),
+        (other / "plots" / "estimates.csv", r"lies inside the run directory .*other \(it holds metrics.json\)"),
+        (configured / "estimates.csv", r"lies inside the run directory .*configured \(it holds .hydra/config.yaml\)"),
+    ]
+    for output, message in cases:
+        for extra in ((), ("overwrite=true",)):
+            code, out, err = predict(capsys, f"run={run}", f"input={csv}", f"output={output}", *extra)
+            assert code == 2 and out == "", (output, extra, err)
+            assert len(err.splitlines()) == 1 and re.search(
+                rf"error: output = {re.escape(str(output))} " + message, err
+            )
+            assert files_under(tmp_path) == before, (output, extra)
+
+
+def test_existing_output_needs_overwrite_true(tiny_run, est, tmp_path, capsys, monkeypatch):
+    seat, body, _ = recordings(2, 300, est.dt)
+    csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt, names=["a", "b"])
+    out = tmp_path / "estimates.csv"
+    out.write_text("keep me\n")
+    run, inp = f"run={tiny_run}", f"input={csv}"
+    code, printed, err = predict(capsys, run, inp, f"output={out}")
+    assert code == 2 and printed == "" and out.read_text() == "keep me\n"
+    assert err.splitlines() == [
+        f"hybrid-sysid-predict: error: output = {out} exists; allowed: a new file, or overwrite=true to replace it"
+    ]
+    code, _, err = predict(capsys, run, inp, f"output={out}", "overwrite=maybe")
+    assert code == 2 and re.search(r"overwrite = 'maybe' is not allowed: true or false", err)
+    code, _, err = predict(capsys, run, inp, f"output={out}", "overwrite=true", "windows=3")
+    assert code == 0, err
+    got, want = pd.read_csv(out), est.predict(seat, body, est.dt, windows=3)
+    assert list(got.recording) == ["a", "b"]
+    assert got[PARAMS].to_numpy() == pytest.approx(want[PARAMS].to_numpy(), rel=1e-6)
+
+    # a file that appears under the output's name while the recordings are estimated is kept too
+    import hybrid_sysid.cli.predict as cli
+
+    late, load = tmp_path / "late.csv", cli.load_estimator
+
+    class Racing:  # the run's estimator; someone else writes late.csv while it works
+        def __init__(self, run):
+            self.est = load(run)
+
+        def predict(self, *args, **kwargs):
+            late.write_text("someone else's\n")
+            return self.est.predict(*args, **kwargs)
+
+    monkeypatch.setattr(cli, "load_estimator", Racing)
+    code, _, err = predict(capsys, run, inp, f"output={late}")
+    assert code == 2 and late.read_text() == "someone else's\n"
+    assert err.splitlines() == [
+        f"hybrid-sysid-predict: error: output = {late} appeared while the recordings were estimated and is left "
+        "as it is; allowed: a new file, or overwrite=true to replace it"
+    ]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["estimates.csv", "late.csv", "rec.csv"]  # no temp file
+
+
+def test_bool_complex_and_overflowing_npz_arrays(tiny_run, est, tmp_path, capsys):
+    seat, body, _ = recordings(2, 300, est.dt)
+    big = body.copy()
+    big[1, 9] = -1e39
+    arrays = {
+        "bool": dict(seat_acc=seat > 0, body_acc=body),
+        "complex": dict(seat_acc=seat, body_acc=body + 0.5j),
+        "big": dict(seat_acc=seat, body_acc=big),
+    }
+    messages = {
+        "bool": r"bool.npz: array seat_acc has dtype bool and shape \(2, 300\); allowed: real numbers \(a float or "
+        r"integer array, not bool or complex\)",
+        "complex": r"complex.npz: array body_acc has dtype complex128 and shape \(2, 300\); allowed: real numbers "
+        r"\(a float or integer array, not bool or complex\)",
+        "big": r"big.npz: body_acc of recording 1 holds -1e\+39 at step 9: beyond float32's range, in which the "
+        r"network reads it; allowed: magnitudes up to 3.40282e\+38",
+    }
+    for name, content in arrays.items():
+        np.savez(tmp_path / f"{name}.npz", dt=est.dt, **content)
+        code, out, err = predict(capsys, f"run={tiny_run}", f"input={tmp_path / name}.npz")
+        assert code == 2 and out == "", (name, err)
+        assert len(err.splitlines()) == 1 and re.search(messages[name], err), (name, err)
+
+
+def test_a_column_named_like_pandas_renames_a_duplicate_is_read(tiny_run, est, tmp_path, capsys):
+    """Duplicates are found in the header itself: a column really named seat_acc.1 is another column."""
+    seat, body, _ = recordings(1, 300, est.dt)
+    csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt)
+    pd.read_csv(csv).assign(**{"seat_acc.1": 1e3}).to_csv(csv, index=False)
+    code, _, err = predict(capsys, f"run={tiny_run}", f"input={csv}", f"output={tmp_path / 'out.csv'}")
+    assert code == 0, err
+    got, want = pd.read_csv(tmp_path / "out.csv"), est.predict(seat, body, est.dt)
+    assert got[PARAMS].to_numpy() == pytest.approx(want[PARAMS].to_numpy(), rel=1e-6)
+
+
+def test_windows_beyond_the_memory_available_are_refused(tiny_run, est, tmp_path, capsys, monkeypatch):
+    """A window of 2 x 200 steps takes 8000 bytes: 3200 as float64, twice (cut, then stacked), and 1600 as the
+    float32 copy the network reads. With 800 kB available, 100 windows fit and 101 do not."""
+    import hybrid_sysid.inference.estimator as estimator
+
+    monkeypatch.setattr(estimator, "available_memory", lambda: 800_000)
+    seat, body, _ = recordings(1, 400, est.dt)
+    csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt)
+    code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", "windows=101")
+    assert code == 2 and out == ""
+    assert err.splitlines() == [
+        f"hybrid-sysid-predict: error: input = {csv}: windows = 101 is not allowed for recording 0 (400 steps): "
+        f"101 windows of 2 x 200 steps need {101 * 8000 / 2**30:.3g} GiB of memory (float64, cut and stacked, "
+        f"plus a float32 copy of up to 4096 windows) and {800_000 / 2**30:.3g} GiB is available; allowed: 1 to 100"
+    ]
+    code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", "windows=100")
+    assert code == 0 and len(out.splitlines()) == 2, err
+
+
+def test_ctrl_c_exits_130_with_one_line_and_no_output(tiny_run, est, tmp_path, capsys, monkeypatch):
+    """Interrupted while reading, or while writing output= (the partial file is removed)."""
+    import hybrid_sysid.cli.predict as cli
+
+    seat, body, _ = recordings(1, 300, est.dt)
+    csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt)
+    out = tmp_path / "out.csv"
+
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    def half_written(self, path, **kwargs):
+        Path(path).write_text("recording,steps\n")
+        raise KeyboardInterrupt
+
+    for target, name, replacement in ((cli, "read_input", interrupted), (pd.DataFrame, "to_csv", half_written)):
+        with monkeypatch.context() as patch:
+            patch.setattr(target, name, replacement)
+            try:
+                with pytest.raises(SystemExit) as ended:
+                    main([f"run={tiny_run}", f"input={csv}", f"output={out}"])
+            except KeyboardInterrupt:
+                pytest.fail(f"KeyboardInterrupt from {name} escaped main()")
+        assert ended.value.code == 130
+        assert capsys.readouterr().err.splitlines() == ["hybrid-sysid-predict: interrupted (Ctrl-C)"]
+        assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"], name

@@ -89,3 +89,17 @@ def test_evaluation_refuses_a_planted_target_before_anything_runs(tiny_run, tmp_
 def test_a_command_line_target_outside_the_package_is_refused(make_cfg, override, match):
     with pytest.raises(ConfigError, match=match):
         validate(make_cfg(override))
+
+
+@pytest.mark.integration
+def test_predict_refuses_a_planted_target_in_one_line(tiny_run, tmp_path):
+    key, node, marker = payloads(tmp_path)[0]
+    run = planted(tiny_run, tmp_path, key, node)
+    (tmp_path / "rec.csv").write_text(
+        "time,seat_acc,body_acc\n" + "".join(f"{i * 0.005},0.1,0.2\n" for i in range(400))
+    )
+    cli = [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={run}", f"input={tmp_path / 'rec.csv'}"]
+    proc = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert "objective._target_ = 'pandas.read_pickle' is not allowed" in proc.stderr
+    assert len(proc.stderr.strip().splitlines()) == 1 and not marker.exists()

@@ -1,16 +1,20 @@
 """``hybrid-sysid-predict``: estimate p1, p2 and the seat mass m3 of recordings with a trained run.
 
-    hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true] [dt=SECONDS]
+    hybrid-sysid-predict run=DIR input=FILE [output=CSV] [overwrite=true] [windows=K] [resample=true] [dt=SECONDS]
 
 The command parses its key=value arguments, reads the file and prints; the estimates come from
 ``hybrid_sysid.inference.estimator``, the code the Python API runs. Bad input prints one line on stderr naming the
-problem and exits with status 2. File formats and output columns: docs/predict.md.
+problem and exits with status 2; Ctrl-C prints one line and exits with status 130. output= never replaces the
+input, a file inside a run directory, or (without overwrite=true) any existing file. File formats and output
+columns: docs/predict.md.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import sys
+import tempfile
 from pathlib import Path
 
 import pandas as pd
@@ -18,13 +22,18 @@ import pandas as pd
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.inference.estimator import InputError, load_estimator
 from hybrid_sysid.inference.readers import read_input
+from hybrid_sysid.runs.records import RECORD
+from hybrid_sysid.runs.rundir import CONFIG
 
-USAGE = "usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [windows=K] [resample=true|false] [dt=SECONDS]"
-KEYS = ("run", "input", "output", "windows", "resample", "dt")
+USAGE = (
+    "usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [overwrite=true|false] [windows=K] "
+    "[resample=true|false] [dt=SECONDS]"
+)
+KEYS = ("run", "input", "output", "overwrite", "windows", "resample", "dt")
 
 
 def parse_args(argv: list[str]) -> dict:
-    """key=value arguments -> {run, input, output, windows, resample, dt}, each checked."""
+    """key=value arguments -> {run, input, output, overwrite, windows, resample, dt}, each checked."""
     args: dict = {}
     for arg in argv:
         key, sep, value = arg.partition("=")
@@ -45,10 +54,11 @@ def parse_args(argv: list[str]) -> dict:
         args["windows"] = 0
     if args["windows"] < 1:
         raise InputError(f"windows = {windows!r} is not allowed: an integer >= 1")
-    resample = args.get("resample", "false").lower()
-    if resample not in ("true", "false"):
-        raise InputError(f"resample = {args['resample']!r} is not allowed: true or false")
-    args["resample"] = resample == "true"
+    for key in ("resample", "overwrite"):
+        flag = args.get(key, "false").lower()
+        if flag not in ("true", "false"):
+            raise InputError(f"{key} = {args[key]!r} is not allowed: true or false")
+        args[key] = flag == "true"
     if "dt" in args:
         try:
             dt = float(args["dt"])
@@ -60,11 +70,67 @@ def parse_args(argv: list[str]) -> dict:
     return args
 
 
+def check_output(args: dict) -> Path | None:
+    """output= as a Path, after checking it replaces nothing it must not: not the input (also through a link or
+    another spelling of its path), no file inside a run directory (run= or any directory above it that holds a
+    run's config or record), and no existing file unless overwrite=true."""
+    if not args.get("output"):
+        return None
+    output, given = Path(args["output"]), args["output"]
+    if not output.parent.is_dir():
+        raise InputError(f"output = {given}: its directory {output.parent} does not exist")
+    if output.is_dir():
+        raise InputError(f"output = {given} is a directory; allowed: a file name for the CSV table")
+    target, source = output.resolve(), Path(args["input"])
+    if target == source.resolve() or (output.exists() and source.exists() and os.path.samefile(output, source)):
+        raise InputError(
+            f"output = {given} is the input file (input = {args['input']}); allowed: another file, an output "
+            "never replaces its input"
+        )
+    run_dir = Path(args["run"]).resolve()
+    if target.is_relative_to(run_dir):
+        raise InputError(
+            f"output = {given} lies inside the run directory run = {args['run']}; allowed: a path outside run "
+            "directories, whose files are the run's record"
+        )
+    for folder in target.parents:
+        for marker in (CONFIG, RECORD):
+            if (folder / marker).is_file():
+                raise InputError(
+                    f"output = {given} lies inside the run directory {folder} (it holds {marker}); allowed: a "
+                    "path outside run directories, whose files are the run's record"
+                )
+    if (output.exists() or output.is_symlink()) and not args.get("overwrite"):
+        raise InputError(f"output = {given} exists; allowed: a new file, or overwrite=true to replace it")
+    return output
+
+
+def write_new(path: Path, write) -> None:
+    """``write(tmp)`` fills a temporary file beside ``path``, which then becomes ``path`` by a hard link, which
+    fails if ``path`` exists: a file that appeared since check_output is never replaced, and no reader sees half
+    a file. Where hard links are not supported, a rename after a last check."""
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    os.close(fd)
+    umask = os.umask(0)  # the mode a plain open() gives, as write_atomic does
+    os.umask(umask)
+    os.chmod(tmp, 0o666 & ~umask)
+    try:
+        write(Path(tmp))
+        try:
+            os.link(tmp, path)
+        except FileExistsError:
+            raise
+        except OSError:  # a filesystem without hard links
+            if path.exists() or path.is_symlink():
+                raise FileExistsError(path) from None
+            os.replace(tmp, path)
+    finally:
+        Path(tmp).unlink(missing_ok=True)
+
+
 def run(args: dict) -> pd.DataFrame:
     """Read, estimate, print the table and write output= when given."""
-    output = Path(args["output"]) if args.get("output") else None
-    if output is not None and not output.parent.is_dir():
-        raise InputError(f"output = {output}: its directory {output.parent} does not exist")
+    output = check_output(args)
     recordings = read_input(Path(args["input"]), args.get("dt"))
     estimator = load_estimator(args["run"])
     try:
@@ -80,15 +146,21 @@ def run(args: dict) -> pd.DataFrame:
         raise InputError(f"input = {args['input']}: {exc}") from None
     print(table.to_string(index=False))
     if output is not None:
+        write = write_atomic if args.get("overwrite") else write_new
         try:
-            write_atomic(output, lambda tmp: table.to_csv(tmp, index=False))
+            write(output, lambda tmp: table.to_csv(tmp, index=False))
+        except FileExistsError:
+            raise InputError(
+                f"output = {args['output']} appeared while the recordings were estimated and is left as it is; "
+                "allowed: a new file, or overwrite=true to replace it"
+            ) from None
         except OSError as exc:
             raise InputError(f"output = {output} cannot be written ({exc})") from None
     return table
 
 
 def main(argv: list[str] | None = None) -> None:
-    """Console script; exit status 2 with one line on stderr for bad input."""
+    """Console script; exit status 2 with one line on stderr for bad input, 130 for Ctrl-C (128 + SIGINT)."""
     argv = sys.argv[1:] if argv is None else list(argv)
     if argv and argv[0] in ("-h", "--help"):
         print(__doc__)
@@ -98,6 +170,9 @@ def main(argv: list[str] | None = None) -> None:
     except InputError as exc:
         print(f"hybrid-sysid-predict: error: {' '.join(str(exc).split())}", file=sys.stderr)
         sys.exit(2)
+    except KeyboardInterrupt:
+        print("hybrid-sysid-predict: interrupted (Ctrl-C)", file=sys.stderr)
+        sys.exit(130)
 
 
 if __name__ == "__main__":

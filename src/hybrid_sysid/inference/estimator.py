@@ -19,6 +19,8 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from scipy.signal import resample_poly
 
+from hybrid_sysid.config.validation import available_memory
+from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.physics import QuarterCar
 from hybrid_sysid.runs.rundir import CHECKPOINTS, CONFIG, RunDir
 from hybrid_sysid.training.build import build_model
@@ -30,6 +32,7 @@ DT_RTOL = 1e-9  # a recording's dt counts as the run's data.dt within this relat
 MAX_DENOMINATOR = 1000
 RATIO_RTOL = 1e-4
 CHUNK = 4096  # windows per forward pass, so long recordings need bounded memory
+FLOAT32_MAX = float(np.finfo(np.float32).max)  # the network reads float32: larger magnitudes become inf
 COLUMNS = ["recording", "steps", "windows", "p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
 
 
@@ -57,7 +60,7 @@ def load_estimator(run_dir: str | Path, checkpoint: str | Path | None = None) ->
             f"run = {run.path} is a baseline (baseline._target_ = {baseline.get('_target_')}) without a "
             "trained network; allowed: a run of a network model (fast_cnn, paper_cnn)"
         )
-    return Estimator(_network(cfg, _checkpoint_path(run, checkpoint)), cfg)
+    return Estimator(_network(cfg, _checkpoint_path(run, checkpoint), run), cfg)
 
 
 def _checkpoint_path(run: RunDir, checkpoint) -> Path:
@@ -75,14 +78,21 @@ def _checkpoint_path(run: RunDir, checkpoint) -> Path:
     )
 
 
-def _network(cfg: DictConfig, path: Path) -> torch.nn.Module:
+def _network(cfg: DictConfig, path: Path, run: RunDir) -> torch.nn.Module:
     """The run's network with the checkpoint's weights, built by the code that trained it. The only call into
     the training code: if build_model gains arguments, this is the line to change."""
+    try:  # first: a class the config names is checked against this package's before anything is imported
+        model = build_model(cfg)
+    except ConfigError as exc:
+        raise InputError(f"run = {run.path}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - a config that parses but lacks or mistypes keys
+        raise InputError(
+            f"run = {run.path}: its {CONFIG} is damaged ({type(exc).__name__}: {' '.join(str(exc).split())})"
+        ) from None
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
     except Exception as exc:  # noqa: BLE001 - torch raises several classes for a truncated or foreign file
         raise InputError(f"checkpoint {path} cannot be read ({type(exc).__name__}: {exc})") from None
-    model = build_model(cfg)
     try:
         model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
     except RuntimeError as exc:  # another run's checkpoint: torch lists every mismatched key, one line each
@@ -121,21 +131,21 @@ class Estimator:
         if len(names) != len(recordings):
             raise InputError(f"names has {len(names)} items for {len(recordings)} recordings: one name each")
         dt = self._check_dt(dt, resample)
-        cut, steps = [], []
+        k, resampled = int(windows), dt != self.dt
+        stacked = []  # every check passes before any window is cut
         for name, (seat, body) in zip(names, recordings):
             for channel, x in (("seat_acc", seat), ("body_acc", body)):
-                bad = np.flatnonzero(~np.isfinite(x))
-                if bad.size:
-                    raise InputError(
-                        f"{channel} of recording {name!r} holds {x[bad[0]]} at step {bad[0]}: "
-                        "every value must be finite"
-                    )
+                _check_values(channel, x, name)
             signals = np.stack([seat, body])  # channel 0 seat, 1 body, as WindowCutter.batch stacks them
-            if dt != self.dt:
+            if resampled:
                 signals = resample_to(signals, dt, self.dt)
-            steps.append(signals.shape[1])
-            cut.append(self._windows(signals, int(windows), name, resampled=dt != self.dt))
-        estimates = self._estimate(np.concatenate(cut)).reshape(len(recordings), int(windows), 2)
+            self._check_windows(signals.shape[1], k, name, resampled)
+            stacked.append(signals)
+        steps = [s.shape[1] for s in stacked]
+        self._check_memory(k, names, steps)
+        estimates = self._estimate(np.concatenate([self._windows(s, k) for s in stacked]))
+        estimates = estimates.reshape(len(recordings), k, 2)
+        _check_estimates(estimates, names, stacked)
         p = estimates.mean(axis=1)
         spread = estimates.std(axis=1)  # of the K window estimates; 0 for K = 1
         return pd.DataFrame(
@@ -171,10 +181,9 @@ class Estimator:
         _ratio(dt, self.dt)  # fails here, before any work, if no fraction is close enough
         return dt
 
-    def _windows(self, signals: np.ndarray, k: int, name, resampled: bool) -> np.ndarray:
-        """(K, 2, window) windows at starts 0, ..., n - window, evenly spaced (integer division: distinct
-        whenever K <= n - window + 1)."""
-        n, w = signals.shape[1], self.window
+    def _check_windows(self, n: int, k: int, name, resampled: bool) -> None:
+        """A recording of n steps (at the run's dt) offers at least one window and k distinct window starts."""
+        w = self.window
         after = " after resampling to the run's dt" if resampled else ""
         if n < w:
             raise InputError(
@@ -186,6 +195,30 @@ class Estimator:
                 f"windows = {k} is not allowed for recording {name!r}: its {n} steps{after} offer "
                 f"{n - w + 1} distinct starts of a {w}-step window; allowed: 1 to {n - w + 1}"
             )
+
+    def _check_memory(self, k: int, names: list, steps: list[int]) -> None:
+        """The windows of every recording, cut and stacked, fit in the memory available (window_bytes)."""
+        need, available = window_bytes(k * len(names), self.window), available_memory()
+        if available is None or need <= available:
+            return
+        fit = max_windows(available, self.window) // len(names)
+        longest = int(np.argmax(steps))
+        which = (
+            f"recording {names[0]!r} ({steps[0]} steps)"
+            if len(names) == 1
+            else f"{len(names)} recordings (the longest, {names[longest]!r}, {steps[longest]} steps)"
+        )
+        raise InputError(
+            f"windows = {k} is not allowed for {which}: {k * len(names)} windows of 2 x {self.window} steps "
+            f"need {need / 2**30:.3g} GiB of memory (float64, cut and stacked, plus a float32 copy of up to "
+            f"{CHUNK} windows) and {available / 2**30:.3g} GiB is available; allowed: "
+            + (f"1 to {fit}" if fit >= 1 else "fewer recordings per call, or more memory")
+        )
+
+    def _windows(self, signals: np.ndarray, k: int) -> np.ndarray:
+        """(K, 2, window) windows at starts 0, ..., n - window, evenly spaced (integer division: distinct
+        whenever K <= n - window + 1, which _check_windows ensures)."""
+        n, w = signals.shape[1], self.window
         starts = np.arange(k) * (n - w) // max(k - 1, 1)
         return np.lib.stride_tricks.sliding_window_view(signals, w, axis=1)[:, starts].transpose(1, 0, 2)
 
@@ -200,14 +233,68 @@ class Estimator:
         return np.concatenate(out).astype(np.float64)
 
 
+def window_bytes(n_windows: int, window: int) -> int:
+    """Bytes that n_windows windows of 2 x window steps take while they are estimated: float64 twice (each
+    recording's cut windows and the stack of all of them), plus the float32 copy of one chunk."""
+    return n_windows * 2 * window * 8 * 2 + min(n_windows, CHUNK) * 2 * window * 4
+
+
+def max_windows(available: int, window: int) -> int:
+    """The most windows whose window_bytes fit in ``available`` bytes."""
+    per = 2 * window  # values per window
+    n = available // (per * 20)  # up to CHUNK windows, each has its float32 copy
+    return n if n < CHUNK else (available - CHUNK * per * 4) // (per * 16)
+
+
+def _check_values(channel: str, x: np.ndarray, name) -> None:
+    """Every value finite and within float32's range, which the network reads (beyond it: inf, then NaN)."""
+    bad = np.flatnonzero(~np.isfinite(x))
+    if bad.size:
+        raise InputError(
+            f"{channel} of recording {name!r} holds {x[bad[0]]} at step {bad[0]}: every value must be finite"
+        )
+    big = np.flatnonzero(np.abs(x) > FLOAT32_MAX)
+    if big.size:
+        raise InputError(
+            f"{channel} of recording {name!r} holds {x[big[0]]:g} at step {big[0]}: beyond float32's range, in "
+            f"which the network reads it; allowed: magnitudes up to {FLOAT32_MAX:g}"
+        )
+
+
+def _check_estimates(estimates: np.ndarray, names: list, stacked: list[np.ndarray]) -> None:
+    """Estimates (recordings, K, 2) all finite: values inside float32's range may still overflow the network's
+    float32 arithmetic, which then returns NaN or inf rather than an estimate."""
+    for name, e, signals in zip(names, estimates, stacked):
+        if not np.isfinite(e).all():
+            channel = int(np.argmax(np.abs(signals).max(axis=1)))
+            raise InputError(
+                f"recording {name!r}: the network's estimate is not finite (p1 = {e[:, 0].mean():g}, "
+                f"p2 = {e[:, 1].mean():g}): its values, up to {np.abs(signals).max():g} m/s^2 in "
+                f"{('seat_acc', 'body_acc')[channel]}, overflow the network's float32 arithmetic; allowed: "
+                "accelerations of the magnitude the run was trained on"
+            )
+
+
 def _recordings(seat_acc, body_acc) -> list[tuple[np.ndarray, np.ndarray]]:
     """(seat, body) float64 1-D pairs, one per recording, with equal lengths checked."""
+
+    def real(name, x):
+        """x unchanged; bool and complex arrays would lose what they mean when read as float64."""
+        dtype = np.asarray(x).dtype
+        if dtype.kind in "bc":
+            raise InputError(
+                f"{name} has dtype {dtype}; allowed: real numbers in m/s^2 (a float or integer "
+                "array), not bool or complex"
+            )
+        return x
 
     def split(name, x) -> list[np.ndarray]:
         try:
             if isinstance(x, (list, tuple)) and x and np.ndim(x[0]) == 1:
-                return [np.asarray(r, dtype=np.float64) for r in x]
-            x = np.asarray(x, dtype=np.float64)
+                return [np.asarray(real(f"{name}[{i}]", r), dtype=np.float64) for i, r in enumerate(x)]
+            x = np.asarray(real(name, x), dtype=np.float64)
+        except InputError:
+            raise
         except (TypeError, ValueError) as exc:
             raise InputError(f"{name} cannot be read as numbers ({exc}); allowed: float arrays in m/s^2") from None
         if x.ndim not in (1, 2) or x.size == 0:

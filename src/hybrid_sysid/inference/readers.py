@@ -3,6 +3,8 @@ their names and sampling interval. Bad input raises InputError naming the file, 
 
 from __future__ import annotations
 
+import csv
+from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,6 +14,7 @@ import pandas as pd
 from hybrid_sysid.inference.estimator import DT_RTOL, InputError
 
 CHANNELS = ("seat_acc", "body_acc")
+COLUMNS = (*CHANNELS, "time", "recording")  # the CSV columns read; any other is ignored
 # A time column's steps may each differ from their mean by this fraction: time stamps rounded to a few
 # decimals jitter, a missing sample or a changed rate shows as a step twice the mean or more.
 UNIFORM_RTOL = 0.01
@@ -46,6 +49,7 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
         raise InputError(f"input = {path} is empty; allowed: a header line and rows (docs/predict.md)") from None
     except (OSError, UnicodeDecodeError, pd.errors.ParserError) as exc:
         raise InputError(f"input = {path} cannot be read as CSV ({type(exc).__name__}: {exc})") from None
+    check_header(path)
     needed = list(CHANNELS) + ([] if dt is not None else ["time"])
     missing = [c for c in needed if c not in df.columns]
     if missing:
@@ -82,9 +86,41 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
     return Recordings(seat, body, step, names)
 
 
+def check_header(path: Path) -> None:
+    """Each column read (COLUMNS) named once in the header line: pandas would rename a second seat_acc to
+    seat_acc.1 and read only the first. The header is read as pandas reads it (the first line that is not
+    blank, spaces after commas skipped)."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as f:
+            header = next((row for row in csv.reader(f, skipinitialspace=True) if row), [])
+    except (OSError, UnicodeDecodeError, csv.Error) as exc:
+        raise InputError(f"input = {path} cannot be read as CSV ({type(exc).__name__}: {exc})") from None
+    counts = Counter(header)
+    for name in COLUMNS:
+        if counts[name] > 1:
+            where = [str(i + 1) for i, h in enumerate(header) if h == name]
+            raise InputError(
+                f"input = {path}: column {name} appears {counts[name]} times in the header (columns "
+                f"{', '.join(where)}); allowed: each of {', '.join(COLUMNS)} once"
+            )
+
+
 def numbers(column: pd.Series, path: Path) -> pd.Series:
     """The column as floats; text that is not a number is an error (empty cells become NaN, which the
-    estimator reports with the recording and step)."""
+    estimator reports with the recording and step), and so are true/false cells (pandas reads them as bool,
+    which would count as 1 and 0)."""
+    if column.dtype.kind == "b":  # every cell true or false
+        flags = np.arange(len(column))
+    elif column.dtype.kind == "O":  # true/false among empty cells or text
+        flags = np.flatnonzero(column.map(lambda v: isinstance(v, (bool, np.bool_))).to_numpy(bool))
+    else:
+        flags = np.array([], dtype=int)
+    if flags.size:
+        flag = bool(column.iloc[flags[0]])
+        raise InputError(
+            f"input = {path}: column {column.name} holds {flag} in data row {flags[0] + 1}; allowed: numbers, "
+            "not true/false"
+        )
     values = pd.to_numeric(column, errors="coerce")
     bad = np.flatnonzero(values.isna().to_numpy() & column.notna().to_numpy())
     if bad.size:
@@ -144,8 +180,9 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
         a = arrays[k]
         if a.dtype.kind not in "fiu" or a.ndim not in (1, 2) or a.size == 0:
             raise InputError(
-                f"input = {path}: array {k} has dtype {a.dtype} and shape {a.shape}; allowed: numbers, "
-                "1-D (one recording) or 2-D (recordings, steps), not empty"
+                f"input = {path}: array {k} has dtype {a.dtype} and shape {a.shape}; allowed: real numbers "
+                "(a float or integer array, not bool or complex), 1-D (one recording) or 2-D (recordings, steps), "
+                "not empty"
             )
     if "dt" in arrays:
         a = arrays["dt"]
