@@ -3,6 +3,7 @@ and to a sweep, a full disk, and refusals that must leave nothing behind. Damage
 
 import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -152,6 +153,32 @@ def test_a_second_writer_is_refused_and_the_first_finishes_untouched(tmp_path, m
     job = where if mode == "run" else where / "0"
     assert record(job)["status"] == "completed" and record(job)["seed"] == 0
     assert OmegaConf.load(job / ".hydra" / "config.yaml").seed == 0
+
+
+@pytest.fixture
+def truncated_run(tmp_path, reference_run):
+    """A copy of the reference run whose best.ckpt is cut to its first kilobyte."""
+    run = tmp_path / "truncated"
+    shutil.copytree(reference_run, run)
+    best = run / "checkpoints" / "best.ckpt"
+    best.write_bytes(best.read_bytes()[:1000])
+    return run
+
+
+@pytest.mark.parametrize("case", ["eval without run=", "eval of a truncated checkpoint", "init_from a truncated one"])
+def test_a_refused_evaluation_or_init_from_is_one_line_and_leaves_no_directory(tmp_path, truncated_run, case):
+    out = tmp_path / "out"
+    if case.startswith("eval"):
+        cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"hydra.run.dir={out}"]
+        cli += [] if case == "eval without run=" else [f"run={truncated_run}"]
+    else:
+        cli = [sys.executable, "-m", "hybrid_sysid", *ARGS, f"init_from={truncated_run}", f"hydra.run.dir={out}"]
+    proc = subprocess.run(cli, cwd=tmp_path, env=env_for(tmp_path), capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr[-2000:]
+    expected = "run is missing" if case == "eval without run=" else "checkpoints/best.ckpt cannot be read"
+    assert expected in proc.stderr
+    assert not out.exists() and not (tmp_path / "outputs").exists()
 
 
 def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run):

@@ -64,7 +64,13 @@ class EvalPreflight(Preflight):
     """Preflight (hybrid_sysid.cli.job) that also builds and checks the config to evaluate."""
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
-        validate(evaluation_config(Path(str(cfg.run)), cfg, overrides))
+        if OmegaConf.is_missing(cfg, "run"):
+            raise ConfigError("run is missing: give the trained run's directory, hybrid-sysid-eval run=<run dir>")
+        evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
+        validate(evaluated)
+        from hybrid_sysid.training.build import check_weights  # here: a sweep's parent loads no torch
+
+        check_weights(evaluated, Path(str(cfg.run)), "run")
 
 
 def evaluate(composed: DictConfig, out_dir: Path, overrides: list[str], checked: bool) -> dict:

@@ -34,6 +34,10 @@ class TrainPreflight(Preflight):
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
+        if cfg.get("init_from"):  # its weights must fit and load, before a directory exists
+            from hybrid_sysid.training.build import check_weights
+
+            check_weights(cfg, Path(str(cfg.init_from)), "init_from")
         if cfg.get("resume"):
             RunDir(str(cfg.resume)).check_resume(cfg, overrides)
 

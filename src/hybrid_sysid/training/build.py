@@ -6,6 +6,7 @@ import logging
 from pathlib import Path
 
 import lightning as L
+import torch
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config.targets import build
@@ -102,6 +103,12 @@ def monitor_of(cfg: DictConfig, objective) -> str:
     if m == "auto":
         return "val/rel_dev" if getattr(objective, "uses_labels", True) else "val/loss"
     return m
+
+
+def check_weights(cfg: DictConfig, run_dir: Path, key: str) -> None:
+    """The network of ``cfg`` takes the trained weights of the run in ``run_dir`` (``load_network``): a ConfigError
+    naming ``key`` otherwise, before any directory is made (the command-line preflight)."""
+    load_network(IdentificationModule(build(cfg.model.net, "model.net"), torch.nn.Identity()), cfg, run_dir, key)
 
 
 def load_network(model: IdentificationModule, cfg: DictConfig, run_dir: Path, key: str) -> Path:
