@@ -80,3 +80,18 @@ def test_latex_and_compare_flags(tmp_path, capsys):
     assert main([str(a), "--compare", "road", "--out", str(tmp_path / "o")]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "compare='road'" in err and not (tmp_path / "o").exists()
+
+
+def test_an_unknown_split_is_refused_with_status_2(sweep, tmp_path, capsys):
+    with pytest.raises(SystemExit) as exit_:
+        main([str(sweep), "--split", "nonsense", "--out", str(tmp_path / "out")])
+    assert exit_.value.code == 2 and "invalid choice: 'nonsense'" in capsys.readouterr().err
+    assert not (tmp_path / "out").exists()
+
+
+def test_an_out_that_cannot_be_written_is_one_line_and_status_2(sweep, tmp_path, capsys):
+    blocker = tmp_path / "a_file"
+    blocker.write_text("")
+    assert main([str(sweep), "--out", str(blocker / "report")]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "cannot write the report: NotADirectoryError" in err[0]

@@ -10,6 +10,7 @@ import shlex
 import sys
 from pathlib import Path
 
+from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.report.collect import find_runs
 from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.report.results_page import write_results
@@ -27,7 +28,9 @@ def parse_args(argv=None) -> argparse.Namespace:
         "directories (merged). Exit 0: all runs completed; 1: some failed; 2: bad path.",
     )
     p.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="run or sweep directories (merged)")
-    p.add_argument("--split", default="test", help="split of the table and figures (default: test)")
+    p.add_argument(
+        "--split", default="test", choices=list(SPLITS), help="split of the table and figures (default: test)"
+    )
     p.add_argument("--metric", default="mean_rel_dev", choices=list(METRICS), help="default: mean_rel_dev")
     p.add_argument(
         "--out", type=Path, default=None, help="output directory (default: the PATH if one is given, else ./report)"
@@ -130,4 +133,6 @@ def main(argv=None) -> int:
             )
     except ValueError as exc:  # e.g. --compare naming a key that is not swept
         return _error(str(exc))
+    except OSError as exc:  # e.g. --out on a read-only file system: the runs themselves are untouched
+        return _error(f"cannot write the report: {type(exc).__name__}: {exc}")
     return 1 if bad else 0
