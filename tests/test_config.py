@@ -17,6 +17,11 @@ BAD = [
     (["data.dt=0.05"], r"data.dt = 0.05 is not allowed: the semi-implicit Euler scheme is unstable above 0.036"),
     (["data.speed=-2"], r"data.speed = -2.0 is not allowed: must be > 0"),
     (
+        ["data.measurement=continuous", "data.dt=0.5"],
+        r"data.dt = 0.5 is not allowed: with data.measurement = continuous its Nyquist frequency, 1 Hz, lies below "
+        r"the road's content at data.speed = 15 m/s \(up to 45 Hz",
+    ),
+    (
         ["trainer.curve_every_n_steps=250"],
         r"trainer.curve_every_n_steps = 250 is not allowed: a multiple of "
         r"trainer.eval_every_n_steps = 200",

@@ -185,3 +185,14 @@ def test_bad_datamodule_values_fail_before_anything_is_written(tmp_path, kwargs,
     with pytest.raises(ValueError, match=match):
         QuarterCarDataModule(SMALL, cache_dir=str(tmp_path), **({"window": 100} | kwargs))
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.parametrize("speed", [5.0, 15.0, 30.0])
+def test_continuous_recordings_refuse_a_dt_that_aliases_the_road(speed):
+    """The road's highest wave number is 6 pi rad/m (sec. 2.1), so at speed v its content reaches 3 v Hz: a
+    continuous recording needs 1 / (2 dt) >= 3 v."""
+    limit = 1 / (6 * speed)
+    DatasetSpec(measurement="continuous", speed=speed, dt=limit * 0.99, n_steps=10).validate()
+    with pytest.raises(ValueError, match=rf"data.dt = .* is not allowed: .*up to {3 * speed:.3g} Hz"):
+        DatasetSpec(measurement="continuous", speed=speed, dt=limit * 1.01, n_steps=10).validate()
+    DatasetSpec(measurement="consistent", speed=speed, dt=min(limit * 1.01, 0.03), n_steps=10).validate()

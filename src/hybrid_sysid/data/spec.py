@@ -8,12 +8,14 @@ from __future__ import annotations
 
 import hashlib
 import json
+import math
 from dataclasses import asdict, dataclass, field, fields
 
 from hybrid_sysid.core.checks import ConfigError, check_choice
 from hybrid_sysid.core.options import AMPLITUDES, INTEGRATIONS
 from hybrid_sysid.data.splits import split_by_road
 from hybrid_sysid.physics import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED, QuarterCar, stable_dt_limit
+from hybrid_sysid.physics.road import OMEGA_M
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 3  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording
@@ -67,6 +69,18 @@ class DatasetSpec:
                     self.dt,
                     f"the semi-implicit Euler scheme is unstable above {limit:.4g} s for "
                     f"this car ({self.car.describe()}; m3 in [{self.m3_min}, {self.m3_max}] kg{spread})",
+                )
+        if not self.speed > 0:
+            bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
+        if self.measurement not in STEPPED:  # exact samples of the continuous motion: the road is not sampled
+            top = float(OMEGA_M) * self.speed / (2 * math.pi)  # the road's highest frequency at this speed, Hz
+            if 0.5 / self.dt < top:
+                bad(
+                    f"{prefix}.dt",
+                    self.dt,
+                    f"with {prefix}.measurement = continuous its Nyquist frequency, {0.5 / self.dt:.3g} Hz, lies "
+                    f"below the road's content at {prefix}.speed = {self.speed:g} m/s (up to {top:.3g} Hz: wave "
+                    f"numbers up to 6 pi rad/m), which would alias; allowed: dt <= {0.5 / top:.4g} s",
                 )
         if not self.speed > 0:
             bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
