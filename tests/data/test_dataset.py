@@ -196,3 +196,28 @@ def test_continuous_recordings_refuse_a_dt_that_aliases_the_road(speed):
     with pytest.raises(ValueError, match=rf"data.dt = .* is not allowed: .*up to {3 * speed:.3g} Hz"):
         DatasetSpec(measurement="continuous", speed=speed, dt=limit * 1.01, n_steps=10).validate()
     DatasetSpec(measurement="consistent", speed=speed, dt=min(limit * 1.01, 0.03), n_steps=10).validate()
+
+
+def test_a_cache_directory_that_cannot_be_searched_costs_a_warning(tmp_path, monkeypatch, small):
+    """A cache directory of mode 000 (root ignores modes, so the test makes its stat fail the same way): the run
+    goes on with the simulated dataset and a warning, as the docs promise for a cache that cannot be written."""
+    import pathlib
+
+    real_exists, real_mkdir = pathlib.Path.exists, pathlib.Path.mkdir
+
+    def exists(self, *args, **kwargs):
+        if self.parent == tmp_path / "locked":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_exists(self, *args, **kwargs)
+
+    def mkdir(self, *args, **kwargs):
+        if self.parent == tmp_path / "locked":
+            raise PermissionError(13, "Permission denied", str(self))
+        return real_mkdir(self, *args, **kwargs)
+
+    monkeypatch.setattr(pathlib.Path, "exists", exists)
+    monkeypatch.setattr(pathlib.Path, "mkdir", mkdir)
+    (tmp_path / "locked").mkdir()
+    with pytest.warns(RuntimeWarning, match="cannot be read"):
+        ds = get_dataset(SMALL, tmp_path / "locked")
+    np.testing.assert_array_equal(ds.seat_acc, small.seat_acc)

@@ -79,6 +79,16 @@ def _remove_stale_temporaries(path: Path) -> None:
             pass
 
 
+def _readable(path: Path) -> bool:
+    """Whether the cache file exists; a cache directory that cannot even be searched (mode 000, say) costs a
+    warning, as a cache that cannot be written does, and the dataset is simulated."""
+    try:
+        return path.exists()
+    except OSError as exc:
+        _cache_warning(f"dataset cache {path.parent} cannot be read ({type(exc).__name__}: {exc}); simulating")
+        return False
+
+
 def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -> SimulatedDataset:
     """Load the dataset from the cache if present and intact, otherwise simulate it and store it.
 
@@ -104,7 +114,7 @@ def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -
     try:
         if lock is not None:
             _remove_stale_temporaries(path)
-        if path.exists():
+        if _readable(path):
             try:
                 ds = load_dataset(spec, path)
                 log.info("loaded cached dataset %s", path)
