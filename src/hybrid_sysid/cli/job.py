@@ -217,8 +217,13 @@ class Preflight(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = _state["sweep_dir"] = Path(str(config.hydra.sweep.dir))
-        make_dir(sweep_dir, "hydra.sweep.dir")
         try:
+            if "optuna" in str(config.hydra.sweeper.get("_target_", "")):  # a search: its space before any trial
+                from hybrid_sysid.experiments.tuned import check_search
+
+                s = config.hydra.sweeper
+                check_search(task_config(config), s.get("params"), s.get("n_trials"))
+            make_dir(sweep_dir, "hydra.sweep.dir")
             hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
         except ConfigError as exc:
             fail(str(exc))

@@ -67,6 +67,48 @@ def search_space(params) -> dict:
     return space
 
 
+def check_search(cfg: DictConfig, params, n_trials, where: str = "hydra.sweeper") -> dict:
+    """A search's space and budget, checked before any trial: n_trials >= 1; each parameter choice(...) or
+    interval(a, b) with a < b (and a > 0 when tagged log), and every value it can take of the type of the
+    config's own value at that key (a text choice for a float key would only fail inside a trial, and stop a
+    study). Returns the space (``search_space``); ConfigError naming ``where``'s key otherwise."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+    from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
+
+    if isinstance(n_trials, bool) or not isinstance(n_trials, int) or n_trials < 1:
+        raise ConfigError(f"{where}.n_trials = {n_trials!r} is not allowed: an integer >= 1")
+    parser = OverridesParser.create()
+    for key, spec in (params or {}).items():
+        name = f"{where}.params.{key} = {spec!r} is not allowed"
+        try:
+            value = parser.parse_override(f"{key}={spec}").value()
+        except Exception as exc:  # noqa: BLE001 - Hydra's parser raises its own classes
+            raise ConfigError(f"{name}: {' '.join(str(exc).split())}") from None
+        if isinstance(value, IntervalSweep):
+            if not value.start < value.end:
+                raise ConfigError(f"{name}: interval(a, b) needs a < b")
+            if "log" in value.tags and not value.start > 0:
+                raise ConfigError(f"{name}: a log interval needs bounds > 0")
+            values = [value.start, value.end]
+        elif isinstance(value, ChoiceSweep):
+            values = list(value.list)
+        else:
+            raise ConfigError(f"{name}: choice(...) or interval(a, b), optionally tag(log, interval(a, b))")
+        current = OmegaConf.select(cfg, key, default=None)
+        if current is None:
+            raise ConfigError(f"{name}: the config has no value at {key} to search")
+        for v in values:
+            number = isinstance(v, (int, float)) and not isinstance(v, bool)
+            wanted = isinstance(current, (int, float)) and not isinstance(current, bool)
+            if wanted != number or (
+                isinstance(current, int) and not isinstance(current, bool) and isinstance(v, float)
+            ):
+                raise ConfigError(
+                    f"{name}: {v!r} is not of the type of {key} ({type(current).__name__}, {current!r} in the config)"
+                )
+    return search_space(params or {})
+
+
 def defaults_in(cfg: DictConfig, space: dict) -> dict:
     """The config's own values of the searched keys (trial 0); ConfigError for a key it lacks or a value outside
     the space."""
@@ -113,11 +155,11 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
 
     job_dir, t = Path(job_dir), cfg.tuned
     sweeper = preset("hparams_search", t.search, "tuned.search").hydra.sweeper
-    space = search_space(sweeper.params)
-    trial_settings = {"trainer": {"curve_every_n_steps": None}}  # a trial is scored on validation alone
-    defaults = defaults_in(cfg, space)
     if t.n_trials < 1:
         raise ConfigError(f"tuned.n_trials = {t.n_trials} is not allowed: must be >= 1")
+    space = check_search(cfg, sweeper.params, t.n_trials, "tuned.search: hydra.sweeper")
+    trial_settings = {"trainer": {"curve_every_n_steps": None}}  # a trial is scored on validation alone
+    defaults = defaults_in(cfg, space)
     if not t.seeds:
         raise ConfigError("tuned.seeds = [] is not allowed: give at least one seed, e.g. [0, 1, 2]")
     validate(with_values(cfg, defaults, t.trial_seed, trial_settings))

@@ -1,0 +1,57 @@
+"""A search's space and budget are checked before any trial (hybrid_sysid.experiments.tuned.check_search), both
+for hparams_search (the preflight of hybrid-sysid) and experiment=tuned."""
+
+import os
+import subprocess
+import sys
+
+import pytest
+
+from hybrid_sysid.config import ConfigError
+
+pytest.importorskip("optuna")
+from hybrid_sysid.experiments.tuned import check_search, search_space  # noqa: E402
+
+GOOD = {"model.optim.lr": "tag(log, interval(0.002, 0.05))", "model.net.channels": "choice(16, 32, 48)"}
+
+
+@pytest.mark.parametrize(
+    "params, n_trials, match",
+    [
+        (GOOD, 0, r"hydra.sweeper.n_trials = 0 is not allowed: an integer >= 1"),
+        ({"model.optim.lr": "tag(log, interval(-1, 0.05))"}, 3, r"a log interval needs bounds > 0"),
+        ({"model.optim.lr": "interval(0.05, 0.01)"}, 3, r"interval\(a, b\) needs a < b"),
+        ({"model.optim.lr": "choice(a, b)"}, 3, r"'a' is not of the type of model.optim.lr \(float"),
+        ({"model.net.channels": "choice(16.5, 32)"}, 3, r"16.5 is not of the type of model.net.channels \(int"),
+        ({"model.net.no_such": "choice(1, 2)"}, 3, r"the config has no value at model.net.no_such"),
+        ({"model.optim.lr": "range(1, 4)"}, 3, r"choice\(...\) or interval\(a, b\)"),
+    ],
+)
+def test_a_bad_space_or_budget_is_one_named_error(make_cfg, params, n_trials, match):
+    with pytest.raises(ConfigError, match=match):
+        check_search(make_cfg(), params, n_trials)
+
+
+def test_a_good_space_is_the_search_space(make_cfg):
+    assert check_search(make_cfg(), GOOD, 3) == search_space(GOOD)
+
+
+@pytest.mark.integration
+def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+    sweep = tmp_path / "sweep"
+    cli = [
+        sys.executable,
+        "-m",
+        "hybrid_sysid",
+        "hparams_search=fast_cnn",
+        "data=tiny",
+        "hydra.sweeper.n_trials=0",
+        f"hydra.sweep.dir={sweep}",
+    ]
+    proc = subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert (
+        proc.returncode == 2
+        and proc.stderr.strip() == "error: hydra.sweeper.n_trials = 0 is not allowed: an integer >= 1"
+    ), proc.stderr[-2000:]
+    assert not sweep.exists()
