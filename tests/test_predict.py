@@ -492,3 +492,12 @@ def test_ctrl_c_exits_130_with_one_line_and_no_output(tiny_run, est, tmp_path, c
         assert ended.value.code == 130
         assert capsys.readouterr().err.splitlines() == ["hybrid-sysid-predict: interrupted (Ctrl-C)"]
         assert sorted(p.name for p in tmp_path.iterdir()) == ["rec.csv"], name
+
+
+def test_a_npy_array_named_npz_is_one_line(tiny_run, tmp_path, capsys):
+    np.save(tmp_path / "x.npy", np.zeros(400))
+    (tmp_path / "x.npy").rename(tmp_path / "x.npz")
+    with pytest.raises(SystemExit) as exit_:
+        main([f"run={tiny_run}", f"input={tmp_path / 'x.npz'}"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exit_.value.code == 2 and len(err) == 1 and "is a single .npy array, not an .npz archive" in err[0]

@@ -165,10 +165,16 @@ def choose_dt(file_dt: float, dt: float | None, path: Path, what: str) -> float:
 def read_npz(path: Path, dt: float | None) -> Recordings:
     """Arrays seat_acc and body_acc, 1-D (one recording) or 2-D (recordings, steps), and a scalar dt in s."""
     try:
-        with np.load(path, allow_pickle=False) as z:
-            arrays = {k: z[k] for k in z.files}
-    except (OSError, ValueError, EOFError, AttributeError) as exc:  # AttributeError: a plain .npy, not an archive
+        loaded = np.load(path, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as exc:
         raise InputError(f"input = {path} cannot be read as .npz ({type(exc).__name__}: {exc})") from None
+    if not isinstance(loaded, np.lib.npyio.NpzFile):  # a plain .npy array under an .npz name
+        raise InputError(
+            f"input = {path} is a single .npy array, not an .npz archive; allowed: an .npz file with named arrays "
+            "seat_acc, body_acc and dt (numpy.savez)"
+        )
+    with loaded as z:
+        arrays = {k: z[k] for k in z.files}
     needed = list(CHANNELS) + ([] if dt is not None else ["dt"])
     missing = [k for k in needed if k not in arrays]
     if missing:
