@@ -117,24 +117,24 @@ def test_a_hybrid_search_never_reads_labels_and_a_rerun_trains_nothing(hybrid_jo
 @pytest.mark.integration
 def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
     sweep = tmp_path / "sweep"
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "hybrid_sysid",
-            *TINY,
-            "tuned.n_trials=1",
-            "objective=hybrid",
-            "trainer.progress_bar=false",
-            f"hydra.sweep.dir={sweep}",
-            f"data.cache_dir={tmp_path / 'cache'}",
-        ],
-        cwd=tmp_path,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    cli = [
+        sys.executable,
+        "-m",
+        "hybrid_sysid",
+        *TINY,
+        "tuned.n_trials=1",
+        "objective=hybrid",
+        "trainer.progress_bar=false",
+        f"hydra.sweep.dir={sweep}",
+        f"data.cache_dir={tmp_path / 'cache'}",
+    ]
+    proc = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
+    # an earlier SIGTERM leaves the job's own "interrupted" record; the same command, every run done, supersedes it
+    (sweep / "0" / "metrics.json").write_text('{"status": "interrupted", "error": "interrupted by SIGTERM"}')
+    again = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    assert again.returncode == 0, again.stderr[-3000:]
+    assert not (sweep / "0" / "metrics.json").exists()
     summary = pd.read_csv(sweep / "summary.csv")
     assert sorted(summary.run.unique()) == ["0/default/0", "0/tuned/0"]  # the trials are left out
     assert set(summary.tuning) == {"default", "tuned"}

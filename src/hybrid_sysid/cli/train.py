@@ -53,14 +53,14 @@ def run_task(
 ) -> dict:
     """The job's task (``task``): imported here, so a sweep's parent process, which only composes and launches
     jobs, loads no torch."""
-    if cfg.task == "transfer":
-        from hybrid_sysid.experiments.transfer import run_chain
-
-        return run_chain(cfg, run_dir, overrides)
-    if cfg.task == "tuned":
-        from hybrid_sysid.experiments.tuned import run_tuned
-
-        return run_tuned(cfg, run_dir, overrides)
+    if cfg.task in ("transfer", "tuned"):  # a chain of runs in sub-directories, each with its own record
+        if cfg.task == "transfer":
+            from hybrid_sysid.experiments.transfer import run_chain as chain
+        else:
+            from hybrid_sysid.experiments.tuned import run_tuned as chain
+        result = chain(cfg, run_dir, overrides)
+        RunDir(run_dir).drop_stale_record()  # an earlier interruption's record: every run it named is done now
+        return result
     from hybrid_sysid.training.run import train
 
     # a single run's config was validated by the preflight; a sweep's job has had no preflight

@@ -206,6 +206,14 @@ class RunDir:
     def write_record(self, record: dict) -> None:
         write_record(self.path, record)
 
+    def drop_stale_record(self) -> None:
+        """Remove the record of a job that failed or was interrupted before, once the job has completed all its
+        work in sub-directories (experiment=transfer, experiment=tuned: their runs hold the records), so the sweep
+        summary no longer counts it as failed. A completed record is never removed."""
+        if self.record_file.is_file() and self.completed_record() is None:
+            log.info("%s: the earlier %s superseded by the completed runs below it", self.record_file, "record")
+            self.record_file.unlink()
+
     def record_end(self, overrides, seed, status: str, error: str) -> dict:
         """Record a failed or interrupted job, unless the directory holds a completed run (never replaced). A
         record that cannot be written (a full disk) is reported on one line instead."""
