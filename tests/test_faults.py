@@ -135,7 +135,7 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
 
 
-@pytest.mark.parametrize("mode", ["run", "sweep"])
+@pytest.mark.parametrize("mode", ["run", pytest.param("sweep", marks=pytest.mark.slow)])
 def test_a_second_writer_is_refused_and_the_first_finishes_untouched(tmp_path, mode):
     """One writer per run or sweep directory: while one command writes there, another into the same directory is
     refused in one line, exit 2, before Hydra writes anything, and the first ends with its own config and record."""

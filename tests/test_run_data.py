@@ -64,7 +64,7 @@ def test_load_estimator_refuses_a_planted_target_and_runs_nothing(tiny_run, tmp_
 
 
 @pytest.mark.integration
-@pytest.mark.parametrize("case", [0, 1], ids=["read_pickle", "numpy.save"])
+@pytest.mark.parametrize("case", [0, pytest.param(1, marks=pytest.mark.slow)], ids=["read_pickle", "numpy.save"])
 def test_evaluation_refuses_a_planted_target_before_anything_runs(tiny_run, tmp_path, case):
     key, node, marker = payloads(tmp_path)[case]
     run = planted(tiny_run, tmp_path, key, node)

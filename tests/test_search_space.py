@@ -37,6 +37,7 @@ def test_a_good_space_is_the_search_space(make_cfg):
 
 
 @pytest.mark.integration
+@pytest.mark.slow  # the check itself is tested in process above; this one, the preflight's call, from a shell
 def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     sweep = tmp_path / "sweep"
