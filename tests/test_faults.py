@@ -135,7 +135,31 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
 
 
-@pytest.mark.parametrize("mode", ["run", pytest.param("sweep", marks=pytest.mark.slow)])
+@pytest.mark.parametrize("key", ["hydra.run.dir", "hydra.sweep.dir"])
+def test_a_directory_another_process_holds_is_refused_before_anything_is_written(tmp_path, key):
+    """The lock alone, held here as another writer would hold it: the command is refused in one line, exit 2,
+    and nothing in the directory changes (the test below has a real first writer finish)."""
+    from hybrid_sysid.runs.rundir import hold_for_writing
+
+    where = tmp_path / "held"
+    where.mkdir()
+    (where / "mine.txt").write_text("the first writer's file")
+    lock = hold_for_writing(where, key)
+    try:
+        sweep = ["-m", "launcher=basic"] if key == "hydra.sweep.dir" else []
+        proc = run_app(tmp_path, *sweep, *ARGS, f"{key}={where}")
+    finally:
+        lock.release()
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    assert proc.stderr.strip().splitlines() == [
+        f"error: {key} = {where} is not allowed: another process is writing there (a run or sweep of hybrid-sysid); "
+        f"wait until it ends, or choose another {key}"
+    ]
+    assert sorted(p.name for p in where.iterdir()) == [".writer.lock", "mine.txt"]
+
+
+@pytest.mark.slow  # a real first writer; the test above refuses a held directory in the default run
+@pytest.mark.parametrize("mode", ["run", "sweep"])
 def test_a_second_writer_is_refused_and_the_first_finishes_untouched(tmp_path, mode):
     """One writer per run or sweep directory: while one command writes there, another into the same directory is
     refused in one line, exit 2, before Hydra writes anything, and the first ends with its own config and record."""
@@ -165,7 +189,14 @@ def truncated_run(tmp_path, reference_run):
     return run
 
 
-@pytest.mark.parametrize("case", ["eval without run=", "eval of a truncated checkpoint", "init_from a truncated one"])
+@pytest.mark.parametrize(
+    "case",
+    [
+        "eval without run=",
+        "eval of a truncated checkpoint",
+        pytest.param("init_from a truncated one", marks=pytest.mark.slow),  # the same check_weights as eval's
+    ],
+)
 def test_a_refused_evaluation_or_init_from_is_one_line_and_leaves_no_directory(tmp_path, truncated_run, case):
     out = tmp_path / "out"
     if case.startswith("eval"):

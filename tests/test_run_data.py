@@ -91,15 +91,16 @@ def test_a_command_line_target_outside_the_package_is_refused(make_cfg, override
         validate(make_cfg(override))
 
 
-@pytest.mark.integration
-def test_predict_refuses_a_planted_target_in_one_line(tiny_run, tmp_path):
+def test_predict_refuses_a_planted_target_in_one_line(tiny_run, tmp_path, capsys):
+    from hybrid_sysid.cli.predict import main
+
     key, node, marker = payloads(tmp_path)[0]
     run = planted(tiny_run, tmp_path, key, node)
     (tmp_path / "rec.csv").write_text(
         "time,seat_acc,body_acc\n" + "".join(f"{i * 0.005},0.1,0.2\n" for i in range(400))
     )
-    cli = [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={run}", f"input={tmp_path / 'rec.csv'}"]
-    proc = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
-    assert proc.returncode == 2, proc.stderr[-2000:]
-    assert "objective._target_ = 'pandas.read_pickle' is not allowed" in proc.stderr
-    assert len(proc.stderr.strip().splitlines()) == 1 and not marker.exists()
+    with pytest.raises(SystemExit) as exit_:
+        main([f"run={run}", f"input={tmp_path / 'rec.csv'}"])
+    err = capsys.readouterr().err.strip().splitlines()
+    assert exit_.value.code == 2 and len(err) == 1, err
+    assert "objective._target_ = 'pandas.read_pickle' is not allowed" in err[0] and not marker.exists()
