@@ -174,7 +174,7 @@ def test_adaptation_starts_from_the_sources_weights(source, tmp_path, make_cfg):
     model = build_model(cfg)
     from hybrid_sysid.training.build import load_network
 
-    load_network(model, cfg, run_dir, "init_from")
+    load_network(model.net, cfg, run_dir, "init_from")
     best = torch.load(run_dir / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]
     for key, value in model.net.state_dict().items():
         assert torch.equal(value, best[f"net.{key}"]), key

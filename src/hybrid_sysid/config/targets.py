@@ -20,19 +20,10 @@ _OBJECTIVES = ("LabelledObjective", "HybridObjective", "CombinedObjective")
 _LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
 # config key -> {the _target_ a config may give: (module, class name)}
 KNOWN: dict[str, dict[str, tuple[str, str]]] = {
-    "model.net": {f"hybrid_sysid.model.networks.{n}": ("hybrid_sysid.model.networks", n) for n in _NETWORKS}
-    | {f"hybrid_sysid.model.{n}": ("hybrid_sysid.model.networks", n) for n in _NETWORKS},
-    "objective": {f"hybrid_sysid.model.objectives.{n}": ("hybrid_sysid.model.objectives", n) for n in _OBJECTIVES}
-    | {f"hybrid_sysid.model.{n}": ("hybrid_sysid.model.objectives", n) for n in _OBJECTIVES},
-    "baseline": {
-        "hybrid_sysid.baselines.LeastSquaresFit": ("hybrid_sysid.baselines.least_squares", "LeastSquaresFit"),
-        "hybrid_sysid.baselines.least_squares.LeastSquaresFit": (
-            "hybrid_sysid.baselines.least_squares",
-            "LeastSquaresFit",
-        ),
-    },
-    "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in _LOGGERS}
-    | {f"pytorch_lightning.loggers.{n}": ("lightning.pytorch.loggers", n) for n in _LOGGERS},
+    "model.net": {f"hybrid_sysid.model.networks.{n}": ("hybrid_sysid.model.networks", n) for n in _NETWORKS},
+    "objective": {f"hybrid_sysid.model.objectives.{n}": ("hybrid_sysid.model.objectives", n) for n in _OBJECTIVES},
+    "baseline": {"hybrid_sysid.baselines.LeastSquaresFit": ("hybrid_sysid.baselines.least_squares", "LeastSquaresFit")},
+    "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in _LOGGERS},
 }
 
 
@@ -45,10 +36,9 @@ def check_target(target, key: str) -> None:
     """ConfigError unless ``target`` is one of KNOWN for ``key``; imports nothing."""
     allowed = KNOWN[_family(key)]
     if not isinstance(target, str) or target not in allowed:
-        canonical = list({where: name for name, where in reversed(allowed.items())}.values())  # the first spelling
         raise ConfigError(
             f"{key}._target_ = {format_value(target)} is not allowed: one of "
-            f"{', '.join(sorted(canonical))} (a config names only this package's classes)"
+            f"{', '.join(sorted(allowed))} (a config names only this package's classes)"
         )
 
 

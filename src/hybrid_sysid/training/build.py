@@ -108,13 +108,14 @@ def monitor_of(cfg: DictConfig, objective) -> str:
 def check_weights(cfg: DictConfig, run_dir: Path, key: str) -> None:
     """The network of ``cfg`` takes the trained weights of the run in ``run_dir`` (``load_network``): a ConfigError
     naming ``key`` otherwise, before any directory is made (the command-line preflight)."""
-    load_network(IdentificationModule(build(cfg.model.net, "model.net"), torch.nn.Identity()), cfg, run_dir, key)
+    load_network(build(cfg.model.net, "model.net"), cfg, run_dir, key)
 
 
-def load_network(model: IdentificationModule, cfg: DictConfig, run_dir: Path, key: str) -> Path:
-    """Put the trained weights of the run in ``run_dir`` into ``model.net``; the whole network state comes with
-    them (batch-norm statistics, and the output bounds the source run was trained with). A network of another
-    architecture (class or any argument besides the prior of p) is a ConfigError naming ``key``."""
+def load_network(net: torch.nn.Module, cfg: DictConfig, run_dir: Path, key: str) -> Path:
+    """Put the trained weights of the run in ``run_dir`` into ``net`` (a network built from model.net); the
+    whole network state comes with them (batch-norm statistics, and the output bounds the source run was trained
+    with). A network of another architecture (class or any argument besides the prior of p) is a ConfigError
+    naming ``key``."""
     run = RunDir(run_dir)
     source = run.saved_config(key)
     mine = {k: v for k, v in OmegaConf.to_container(cfg.model.net).items() if k not in PRIOR_KEYS}
@@ -127,7 +128,7 @@ def load_network(model: IdentificationModule, cfg: DictConfig, run_dir: Path, ke
         )
     path, state = run.load_weights(key)
     try:
-        model.net.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
+        net.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
     except RuntimeError as exc:  # torch lists every mismatched key: its first line names the problem
         raise ConfigError(
             f"{key} = {str(run_dir)!r} is not allowed: its weights do not fit model.net ({str(exc).splitlines()[0]})"

@@ -58,7 +58,7 @@ def train(
     model = None
     if init:  # before any directory is made or data simulated: a network that does not fit fails here
         model = build_model(cfg)
-        log.info("starting from the weights of %s", load_network(model, cfg, Path(init), "init_from"))
+        log.info("starting from the weights of %s", load_network(model.net, cfg, Path(init), "init_from"))
     run, done = _open(cfg, run_dir, overrides)
     if done is not None:
         return done
@@ -156,7 +156,7 @@ def evaluate_checkpoint(
             f"{cfg.baseline._target_}) has no trained network to evaluate"
         )
     model = build_model(cfg)
-    checkpoint = load_network(model, cfg, source, "run")
+    checkpoint = load_network(model.net, cfg, source, "run")
     steps = (RunDir(source).read_record("run") or {}).get("steps", 0)  # a damaged record fails here, before work
     run, done = _open(cfg, run_dir, overrides)
     if done is not None:  # a re-run sweep skips what it evaluated
