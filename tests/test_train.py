@@ -174,3 +174,20 @@ def test_test_errors_per_road_class_recombine_into_the_whole_split(tiny_run):
             assert r["mean_rel_dev"] == pytest.approx(
                 ((sub[f"{p}_true"] - sub[f"{p}_pred"]).abs() / sub[f"{p}_true"]).mean()
             )
+
+
+def test_a_stop_swallowed_during_the_work_ends_the_run_at_its_next_safe_point(make_cfg, tmp_path):
+    """A signal handler's exception can be swallowed where it lands (a finaliser, a library's broad handler); the
+    stop it requested still ends the run before it scores its model, and no completed record is written."""
+    import signal
+
+    from hybrid_sysid.core import stop
+
+    stop.request(signal.SIGTERM)
+    try:
+        with pytest.raises(stop.Interrupted, match="SIGTERM"):
+            train(make_cfg(*TINY), tmp_path / "run")
+    finally:
+        stop.clear()
+    assert not (tmp_path / "run" / "metrics.json").exists()
+    assert train(make_cfg(*TINY), tmp_path / "run")["status"] == "completed"  # once cleared, the run completes

@@ -28,7 +28,9 @@ from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from hybrid_sysid.cli.orphans import exit_with_parent
+from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.runs.records import CompletedRecordError
 from hybrid_sysid.runs.rundir import RunDir, hold_for_writing
 
@@ -39,17 +41,9 @@ STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted,
 _state = {"received": None, "raised": False, "sweep_dir": None, "task_started": False, "locks": {}}
 
 
-class Interrupted(BaseException):
-    """A termination signal (SIGTERM: SLURM's time limit, ``timeout``, ``docker stop``; SIGINT: Ctrl-C) during a
-    job. A BaseException, as KeyboardInterrupt is, so no ``except Exception`` on the way swallows it."""
-
-    def __init__(self, signum: int):
-        super().__init__(signal.Signals(signum).name)
-        self.signum = signum
-
-
 def _raise_once(signum, frame):
     _state["received"] = _state["received"] or signum
+    stop.request(signum)  # for the safe points, should the exception below be swallowed where it lands
     if not _state["raised"]:  # a second signal (Ctrl-C twice) must not cut the writing of the record short
         _state["raised"] = True
         raise Interrupted(signum)
@@ -71,6 +65,7 @@ def interruptible():
     """Within: SIGTERM and SIGINT raise Interrupted (Lightning, which installs its own SIGTERM handler during
     fit, calls this one after its own, then tears down and re-raises). The previous handlers return after."""
     _state["raised"] = False
+    stop.clear()
     previous = {s: signal.getsignal(s) for s in SIGNALS}
     hook, sys.unraisablehook = sys.unraisablehook, _redeliver
     for s in SIGNALS:

@@ -19,6 +19,7 @@ import torch
 from omegaconf import DictConfig
 
 from hybrid_sysid.config import validate
+from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.runs.records import run_record
 from hybrid_sysid.runs.rundir import RunDir
@@ -196,6 +197,7 @@ def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, logg
     """The end every run shares: score the model on the noise levels and K values of the config, write
     predictions.csv, curves.csv and the record (``fields`` added to it; a callable is read after scoring), close
     the trackers, print the table. Returns the record."""
+    stop.check()  # a safe point: a termination signal swallowed during the work ends the run here
     threads = torch.get_num_threads()  # recorded: the numbers depend on it (docs/reliability.md)
     results, predictions = score(model, dm, _noise_levels(cfg), [int(k) for k in cfg.evaluation.windows])
     write_outputs(run.path, predictions, pd.DataFrame(curve_rows, columns=CURVE_COLUMNS))
@@ -204,6 +206,7 @@ def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, logg
     record = run_record(
         "completed", overrides, cfg.seed, steps=step, results=results, threads=threads, by_road_class=classes, **fields
     )
+    stop.check()  # the last safe point before the run is final
     run.write_record(record)
     finish(loggers, results, step)
     log.info(
