@@ -210,11 +210,14 @@ def test_a_single_k_changes_nothing_visible_but_is_named(tmp_path):
 def test_latex_marks_escapes_and_notes(known):
     table = summary_table(collect(known))
     tex = to_latex(table, caption="mean relative deviation")
-    assert r"\begin{tabular}{lrrrrrr}" in tex and r"\toprule" in tex and r"\bottomrule" in tex
-    labelled = next(ln for ln in tex.splitlines() if ln.startswith("labelled &"))
-    hybrid = next(ln for ln in tex.splitlines() if ln.startswith("hybrid &"))
+    assert r"\begin{tabular}{lrrrr}" in tex and r"\toprule" in tex and r"\bottomrule" in tex
+    lines = tex.splitlines()
+    at = next(i for i, ln in enumerate(lines) if ln.startswith("labelled &"))
+    labelled, interval = lines[at], lines[at + 1]  # the interval in the line below, in smaller type
+    hybrid = next(ln for ln in lines if ln.startswith("hybrid &"))
     low, high = t_interval_by_hand(LAB)
-    assert labelled.split(" & ")[1] == rf"$\mathbf{{12.00 \pm 2.00}}\ [{100 * low:.2f}, {100 * high:.2f}]$"
+    assert labelled.split(" & ")[1] == r"$\mathbf{12.00 \pm 2.00}$"
+    assert interval.split(" & ")[1] == rf"{{\scriptsize $[{100 * low:.2f}, {100 * high:.2f}]$}}"
     assert hybrid.split(" & ")[1].endswith(r"^{\dagger}$")
     assert r"$|m_a - m_b| > s_a + s_b$" in tex and "$^\\dagger$" in tex and r"\caption{" in tex
     renamed = table.rename(index={"hybrid": "ls_window"})

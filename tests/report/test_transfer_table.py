@@ -50,7 +50,9 @@ def test_the_bar_figure_is_drawn(tmp_path, drawn):
     assert "noise std 0" in fig.get_suptitle() and "K = 1" in fig.get_suptitle()
     assert sorted(ax.get_title() for ax in fig.axes) == sorted(VALUES)
     assert "relative deviation" in fig.axes[0].get_ylabel() and "%" in fig.axes[0].get_ylabel()
-    assert [t.get_text() for t in fig.axes[0].get_legend().get_texts()] == PARAMS
+    # one legend for the figure, none in a panel
+    assert len(fig.legends) == 1 and all(ax.get_legend() is None for ax in fig.axes)
+    assert [t.get_text() for t in fig.legends[0].get_texts()] == PARAMS
     for ax in fig.axes:
         assert [t.get_text() for t in ax.get_xticklabels()] == ROWS  # the groups named by their row
         per_param = [c for c in ax.containers if isinstance(c, BarContainer)]

@@ -8,43 +8,63 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
+from matplotlib.lines import Line2D
+from matplotlib.patches import Patch
 
 from hybrid_sysid.model.metrics import PARAMETERS
-from hybrid_sysid.report.plotting import curves_figure, save_figure
+from hybrid_sysid.report.plotting import PERCENT, curves_figure, figure_legend, percent, save_figure
 
 
 def predictions_figure(test: pd.DataFrame, path: Path, title: str) -> None:
     """One row per test noise level; per parameter, the predictions against the sorted true values and the
-    histogram of relative deviation (the paper's Figs. 10-13 and 22-29), for one window per recording and, when
-    the run averaged K windows, for the largest K beside it. One figure, so a run draws it in about a second."""
+    histogram of relative deviation in percent, on bins shared by the Ks (the paper's Figs. 10-13 and 22-29),
+    for one window per recording and, when the run averaged K windows, for the largest K beside it; each
+    histogram names the mean deviation per K. One legend for the figure (which colour is which K, and the true
+    values). One figure, so a run draws it in about a second."""
     levels = sorted(test["noise_std"].unique())
     ks = sorted({1, int(test["windows"].max())})
     colours = {ks[0]: "tab:red", ks[-1]: "tab:blue"}
-    fig, axes = plt.subplots(len(levels), 2 * len(PARAMETERS), figsize=(16, 2.6 * len(levels) + 0.6), squeeze=False)
+    fig, axes = plt.subplots(
+        len(levels), 2 * len(PARAMETERS), figsize=(16, 2.6 * len(levels) + 1.0), squeeze=False, layout="constrained"
+    )
     for row, std in enumerate(levels):
+        at = test[test["noise_std"] == std]
         for j, name in enumerate(PARAMETERS):
             curve, hist = axes[row, 2 * j], axes[row, 2 * j + 1]
+            devs = {}
             for k in ks:
-                sub = test[(test["noise_std"] == std) & (test["windows"] == k)]
+                sub = at[at["windows"] == k]
                 true, est = sub[f"{name}_true"].to_numpy(), sub[f"{name}_pred"].to_numpy()
                 order = np.argsort(true, kind="stable")
-                dev = np.abs(true - est) / true
-                label = f"K = {k}: mean {dev.mean():.2%}"
-                curve.plot(est[order], ".", color=colours[k], ms=2, label=label)
-                hist.hist(dev, bins=40, color=colours[k], alpha=0.5, label=label)
-            curve.plot(true[order], "-", color="tab:green", lw=1.2)
-            curve.set(ylabel=name, title=f"noise std {std:g} m/s^2: {name} (green: true)")
-            hist.set(title=f"relative deviation of {name}")
-            hist.legend(fontsize="small")
+                devs[k] = PERCENT * np.abs(true - est) / true
+                curve.plot(est[order], ".", color=colours[k], ms=2, label=f"K = {k}")
+            edges = np.histogram_bin_edges(np.concatenate(list(devs.values())), bins=40)
+            for k, dev in devs.items():
+                hist.hist(dev, bins=edges, color=colours[k], alpha=0.5, label=f"K = {k}")
+            hist.text(
+                0.98,
+                0.95,
+                "\n".join(f"K = {k}: mean {dev.mean():.2f}%" for k, dev in devs.items()),
+                transform=hist.transAxes,
+                ha="right",
+                va="top",
+                fontsize="small",
+            )
+            curve.plot(true[order], "-", color="tab:green", lw=1.2, label="true value")
+            curve.set(ylabel=name, title=f"noise std {std:g} m/s^2: {name}")
+            hist.set(title=f"relative deviation of {name} [%]", ylabel="recordings")
     for ax in axes[-1, 0::2]:
         ax.set_xlabel("test recording (sorted by true value)")
+    for ax in axes[-1, 1::2]:
+        ax.set_xlabel(percent("relative deviation"))
+    handles = [Patch(color=colours[k], alpha=0.6, label=f"K = {k}") for k in ks]
+    figure_legend(fig, handles=[*handles, Line2D([], [], color="tab:green", lw=1.2, label="true value")])
     save_figure(fig, path, title)
 
 
 def write_run_figures(run_dir) -> None:
     """figures/ of a run directory: test predictions at every noise level (test_predictions.png), and the learning
-    curves (mean
-    relative deviation against step, one line per split and noise level)."""
+    curves (mean relative deviation in percent against step, one line per split and noise level)."""
     run_dir = Path(run_dir)
     predictions = pd.read_csv(run_dir / "predictions.csv")
     curves = pd.read_csv(run_dir / "curves.csv")

@@ -1,97 +1,113 @@
-"""Figures comparing the rows of a sweep's table (e.g. labelled vs hybrid): robustness and learning curves."""
+"""Figures comparing the rows of a sweep's table (e.g. labelled vs hybrid): robustness, tuning, transfer and
+learning curves. Relative deviations in percent, as in the tables; one legend per figure."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib.pyplot as plt
+import numpy as np
 import pandas as pd
-from matplotlib.ticker import NullLocator
 
-from hybrid_sysid.report.plotting import curves_figure, save_figure
-from hybrid_sysid.report.tables import METRICS, row_label
+from hybrid_sysid.report.plotting import (
+    LINESTYLES,
+    PERCENT,
+    curves_figure,
+    figure_legend,
+    noise_axis,
+    panels,
+    percent,
+    save_figure,
+)
+from hybrid_sysid.report.tables import K_LEVEL, METRICS, row_label
+
+DODGE = 0.3  # the width over which the rows' points at one noise level are spread, so error bars do not hide
+
+
+def _keys(table: pd.DataFrame) -> list[dict]:
+    """Each row of the table as {level: value}."""
+    names = [str(n) for n in table.index.names]
+    return [dict(zip(names, label if isinstance(label, tuple) else (label,))) for label in table.index]
+
+
+def _offsets(n: int) -> np.ndarray:
+    """x offsets of n rows around each noise level's position, within ±DODGE / 2."""
+    return (np.arange(n) - (n - 1) / 2) * (DODGE / (n - 1) if n > 1 else 0.0)
+
+
+def _draw_rows(ax, table, param, levels, styles, labels) -> None:
+    """One errorbar line per table row in a panel: the mean over seeds in percent at each noise level's position,
+    error bars the std over seeds. styles: per row (colour, linestyle)."""
+    x = [i for i, n in enumerate(levels) if (n, param, "mean") in table.columns]
+    shown = [levels[i] for i in x]
+    for offset, (colour, linestyle), label, (_, row) in zip(_offsets(len(table)), styles, labels, table.iterrows()):
+        y = row[[(n, param, "mean") for n in shown]].astype(float).to_numpy()
+        err = row[[(n, param, "std") for n in shown]].astype(float).fillna(0.0).to_numpy()
+        ax.errorbar(
+            np.asarray(x, dtype=float) + offset,
+            PERCENT * y,
+            yerr=PERCENT * err,
+            marker="o",
+            ms=4,
+            capsize=3,
+            color=colour,
+            linestyle=linestyle,
+            label=label,
+        )
 
 
 def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_dev", split: str = "test") -> None:
-    """Metric against noise std, one line per table row, one panel per parameter; error bars: std over seeds.
-    x is symlog, linear below the smallest non-zero noise, so the clean level (0) is on the axis."""
+    """The metric in percent against noise std, one line per table row, one panel per parameter; error bars: std
+    over seeds. One colour per row without its K (e.g. per objective), one line style per K (K = 1 solid, the
+    next K dashed); the noise levels evenly spaced, and the rows' points spread a little around each."""
     cells = [c for c in table.columns if c[2] == "mean"]
     params = sorted({p for _, p, _ in cells})
-    noises = sorted({n for n, _, _ in cells})
-    positive = [n for n in noises if n > 0]
-    fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
+    levels = sorted({n for n, _, _ in cells})
+    keys = _keys(table)
+    hue = [tuple((k, v) for k, v in r.items() if k != K_LEVEL) for r in keys]
+    colours = {h: f"C{i}" for i, h in enumerate(dict.fromkeys(hue))}
+    ks = sorted({r[K_LEVEL] for r in keys}) if K_LEVEL in table.index.names else []
+    styles = [
+        (colours[h], LINESTYLES[ks.index(r[K_LEVEL]) % len(LINESTYLES)] if ks else "-") for h, r in zip(hue, keys)
+    ]
+    labels = [row_label(table.index.names, list(r.values())) for r in keys]
+    fig, axes = panels(len(params))
     for ax, param in zip(axes[0], params):
-        x = [n for n in noises if (n, param, "mean") in table.columns]
-        for label, row in table.iterrows():
-            y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
-            err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
-            ax.errorbar(
-                x,
-                y,
-                yerr=err,
-                marker="o",
-                ms=4,
-                capsize=3,
-                label=row_label(table.index.names, label if isinstance(label, tuple) else (label,)),
-            )
-        noise_axis(ax, x, positive, METRICS[metric], param)
-    axes[0, 0].legend(fontsize="small")
-    save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds")
-
-
-def noise_axis(ax, x, positive, ylabel: str, title: str) -> None:
-    """x (noise std) symlog, linear below the smallest non-zero noise so the clean level (0) is on the axis, ticks
-    at the levels evaluated; y log."""
-    if positive and len(x) > 1:
-        ax.set_xscale("symlog", linthresh=min(positive), linscale=0.5)
-    ax.set_xticks(x, [f"{n:g}" for n in x])  # ticks at the levels evaluated, not at decades
-    ax.xaxis.set_minor_locator(NullLocator())
-    ax.set_yscale("log")
-    ax.set(xlabel="noise std [m/s^2]", ylabel=ylabel, title=title)
-    ax.grid(True, which="both", alpha=0.3)
+        _draw_rows(ax, table, param, levels, styles, labels)
+        noise_axis(ax, levels, METRICS[metric], param)
+    # rows of one colour are next to each other in the table: one legend column per colour, its K down it
+    grouped = ks and len(labels) == len(colours) * len(ks) and len(colours) <= 4
+    figure_legend(fig, ncol=len(colours) if grouped else None)
+    note = f"; solid: K = {ks[0]:g}, dashed: K = {ks[1]:g}" if len(ks) > 1 else ""
+    save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds{note}")
 
 
 def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "mean_rel_dev") -> None:
-    """experiment=tuned: the metric against noise std, one colour per objective, dashed with its default values
-    and solid with its tuned ones, one panel per parameter, at one K; error bars: std over seeds. ``table`` has
-    the row levels objective and tuning (and K when several were evaluated)."""
-    if "K" in table.index.names:
-        table = table.xs(k, level="K")
+    """experiment=tuned: the metric in percent against noise std, one colour per objective, dashed with its
+    default values and solid with its tuned ones, one panel per parameter, at one K; error bars: std over seeds.
+    ``table`` has the row levels objective and tuning (and K when several were evaluated)."""
+    if K_LEVEL in table.index.names:
+        table = table.xs(k, level=K_LEVEL)
     cells = [c for c in table.columns if c[2] == "mean"]
     params = sorted({p for _, p, _ in cells})
-    fig, axes = plt.subplots(1, len(params), figsize=(5.5 * len(params), 4.2), sharey=True, squeeze=False)
+    levels = sorted({n for n, _, _ in cells})
     # with one objective swept it is no row level: one colour
-    rows = [
-        {"objective": "", **dict(zip(table.index.names, label if isinstance(label, tuple) else (label,)))}
-        for label in table.index
-    ]
+    rows = [{"objective": "", **r} for r in _keys(table)]
     colours = {o: f"C{i}" for i, o in enumerate(dict.fromkeys(r["objective"] for r in rows))}
+    styles = [(colours[r["objective"]], "--" if r["tuning"] == "default" else "-") for r in rows]
+    labels = [", ".join(v for v in (r["objective"], r["tuning"]) if v) for r in rows]
+    fig, axes = panels(len(params))
     for ax, param in zip(axes[0], params):
-        x = sorted(n for n, p, _ in cells if p == param)
-        for keys, (_, row) in zip(rows, table.iterrows()):
-            y = row[[(n, param, "mean") for n in x]].astype(float).to_numpy()
-            err = row[[(n, param, "std") for n in x]].astype(float).fillna(0.0).to_numpy()
-            ax.errorbar(
-                x,
-                y,
-                yerr=err,
-                marker="o",
-                ms=4,
-                capsize=3,
-                color=colours[keys["objective"]],
-                linestyle="--" if keys["tuning"] == "default" else "-",
-                label=", ".join(v for v in (keys["objective"], keys["tuning"]) if v),
-            )
-        noise_axis(ax, x, [n for n in x if n > 0], METRICS[metric], param)
-    axes[0, 0].legend(fontsize="small")
+        _draw_rows(ax, table, param, levels, styles, labels)
+        noise_axis(ax, levels, METRICS[metric], param)
+    figure_legend(fig)
     save_figure(fig, path, f"tuning: test split, K = {k}, mean ± std over seeds (dashed: default values)")
 
 
 def learning_curves_compared(
     curves: pd.DataFrame, path: Path, metric: str = "mean_rel_dev", split: str = "test"
 ) -> None:
-    """From the runs' curves.csv rows (with a 'label' column naming the table row): the metric on the split
-    at noise 0 (or the lowest level recorded), mean over seeds per step, one line per label, one panel per
+    """From the runs' curves.csv rows (with a 'label' column naming the table row): the metric in percent on the
+    split at noise 0 (or the lowest level recorded), mean over seeds per step, one line per label, one panel per
     parameter."""
     sub = curves[curves["split"] == split]
     noise = 0.0 if sub.empty or (sub["noise_std"] == 0).any() else sub["noise_std"].min()
@@ -107,26 +123,25 @@ def learning_curves_compared(
 
 def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int = 1) -> None:
     """experiment=transfer: one panel per scenario, one group of bars per row (source evaluated there, adapted,
-    hybrid from scratch, oracle), p1 and p2 side by side at one noise level and K; error bars: std over seeds.
-    ``table`` has the row levels scenario and row (and K when several were evaluated)."""
-    levels = list(table.index.names)
-    if "K" in levels:
-        table = table.xs(k, level="K")
+    hybrid from scratch, oracle), p1 and p2 side by side at one noise level and K, in percent; error bars: std
+    over seeds. ``table`` has the row levels scenario and row (and K when several were evaluated)."""
+    if K_LEVEL in table.index.names:
+        table = table.xs(k, level=K_LEVEL)
     params = [p for n, p, s in table.columns if s == "mean" and n == noise]
     scenarios = list(dict.fromkeys(table.index.get_level_values("scenario")))
-    fig, axes = plt.subplots(1, len(scenarios), figsize=(3.6 * len(scenarios) + 1, 4.2), sharey=True, squeeze=False)
+    fig, axes = panels(len(scenarios), width=3.6 + 1 / len(scenarios))
     width = 0.8 / max(len(params), 1)
     for ax, scenario in zip(axes[0], scenarios):
         sub = table.xs(scenario, level="scenario")
         x = range(len(sub))
         for j, param in enumerate(params):
-            mean = 100 * sub[(noise, param, "mean")].astype(float).to_numpy()
-            err = 100 * sub[(noise, param, "std")].astype(float).fillna(0.0).to_numpy()
+            mean = PERCENT * sub[(noise, param, "mean")].astype(float).to_numpy()
+            err = PERCENT * sub[(noise, param, "std")].astype(float).fillna(0.0).to_numpy()
             ax.bar([i + (j - (len(params) - 1) / 2) * width for i in x], mean, width, yerr=err, capsize=3, label=param)
         ax.set_xticks(list(x), [str(r) for r in sub.index], rotation=30, ha="right", fontsize="small")
         ax.set_xlim(-0.5, max(len(sub), 3) - 0.5)  # bars as wide in a one-row panel as in the others
         ax.set(title=scenario, yscale="log")
         ax.grid(True, axis="y", which="both", alpha=0.3)
-    axes[0, 0].set_ylabel("mean relative deviation [%]")
-    axes[0, 0].legend(fontsize="small")
+    axes[0, 0].set_ylabel(percent(METRICS["mean_rel_dev"]))
+    figure_legend(fig)
     save_figure(fig, path, f"transfer: test split, noise std {noise:g}, K = {k}, mean ± std over seeds")
