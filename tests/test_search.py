@@ -1,11 +1,13 @@
-"""Hyperparameter search (conf/hparams_search, hydra-optuna-sweeper) in a subprocess, as a user runs it: a
-seeded 3-trial study completes with finite values, each trial's value is its job's model-selection figure, a
-failed trial is recorded and the study goes on, the best parameters are written beside the sweep, and a search
-over the hybrid objective never reads labels."""
+"""Hyperparameter search (conf/hparams_search, the study sweeper of hybrid_sysid.cli.search) in a subprocess, as a
+user runs it: a seeded 3-trial study completes with finite values, each trial's value is its job's
+model-selection figure, a failed trial is recorded and the study goes on, the best parameters are written beside
+the sweep, a search terminated during a trial and run again ends with the trials and values of an uninterrupted
+one, and a search over the hybrid objective never reads labels."""
 
 import json
 import math
 import os
+import signal
 import subprocess
 import sys
 import textwrap
@@ -13,8 +15,7 @@ import textwrap
 import pytest
 import yaml
 
-pytest.importorskip("hydra_plugins.hydra_optuna_sweeper", reason='needs the search extra: pip install -e ".[search]"')
-optuna = pytest.importorskip("optuna")
+optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 
 pytestmark = pytest.mark.integration
 
@@ -42,12 +43,13 @@ POISONED = textwrap.dedent("""
 """)
 
 
-# the app with one trial failing: the one with 16 channels (the seeded sampler's first draw)
+# the app with one trial failing: the first (job 0)
 FAILING = textwrap.dedent("""
+    from hydra.core.hydra_config import HydraConfig
     from hybrid_sysid.training import run as train
     build_model = train.build_model
     def failing(cfg):
-        if cfg.model.net.channels == 16:
+        if HydraConfig.get().job.num == 0:
             raise RuntimeError("a failing trial")
         return build_model(cfg)
     train.build_model = failing
@@ -56,30 +58,57 @@ FAILING = textwrap.dedent("""
 """)
 
 
+# the app sending itself a SIGTERM during the 5th training step of job 1 (the basic launcher runs the jobs in the
+# search's own process)
+TERMINATED = textwrap.dedent("""
+    import os
+    import signal
+    from hydra.core.hydra_config import HydraConfig
+    from hybrid_sysid.training import run as train
+    build_model = train.build_model
+    def build(cfg):
+        model = build_model(cfg)
+        if HydraConfig.get().job.num == 1:
+            step, calls = model.training_step, []
+            def terminated(*args, **kwargs):
+                calls.append(1)
+                if len(calls) == 5:
+                    os.kill(os.getpid(), signal.SIGTERM)
+                return step(*args, **kwargs)
+            model.training_step = terminated
+        return model
+    train.build_model = build
+    from hybrid_sysid.cli.train import main
+    main()
+""")
+
+
+def command(tmp_path, name, *args, script=None) -> list[str]:
+    app = [sys.executable, str(script)] if script else [sys.executable, "-m", "hybrid_sysid"]
+    sweep = tmp_path / name
+    return [
+        *app,
+        "hparams_search=fast_cnn",
+        *TINY,
+        f"hydra.sweep.dir={sweep}",
+        f"data.cache_dir={tmp_path / 'cache'}",
+        *args,
+    ]
+
+
+def results(sweep):
+    """The study (its default storage: study.db in the sweep directory) and each trial's record."""
+    study = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{sweep / 'study.db'}")
+    records = [json.loads((sweep / str(t.number) / "metrics.json").read_text()) for t in study.trials]
+    return study, records
+
+
 def search(tmp_path, name, *args, script=None, status=0):
     env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
-    sweep = tmp_path / name
-    command = [sys.executable, str(script)] if script else [sys.executable, "-m", "hybrid_sysid"]
-    proc = subprocess.run(
-        [
-            *command,
-            "hparams_search=fast_cnn",
-            *TINY,
-            f"hydra.sweep.dir={sweep}",
-            f"data.cache_dir={tmp_path / 'cache'}",
-            f"hydra.sweeper.storage=sqlite:///{sweep}.db",
-            *args,
-        ],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=900,
-    )
-    assert (proc.returncode == 0) == (status == 0), proc.stderr[-3000:]
-    study = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{sweep}.db")
-    records = [json.loads((sweep / str(t.number) / "metrics.json").read_text()) for t in study.trials]
-    return sweep, study, records
+    cli = command(tmp_path, name, *args, script=script)
+    proc = subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+    assert proc.returncode == status, proc.stderr[-3000:]
+    return tmp_path / name, *results(tmp_path / name)
 
 
 def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_failed_trial(tmp_path):
@@ -100,6 +129,35 @@ def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_faile
     assert best["best_params"] == study.best_params
     summary = (sweep / "summary.md").read_text()  # the sweep summary works on a search's directory too
     assert "a failing trial" in summary
+
+
+def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(tmp_path):
+    # a fresh process: the signal, its exit status and the stored study are what is tested
+    longer = ["trainer.max_steps=40", "trainer.eval_every_n_steps=10", "hydra.sweeper.sampler.n_startup_trials=1"]
+    whole, study, records = search(tmp_path, "whole", *longer)
+    assert [t.state.name for t in study.trials] == ["COMPLETE"] * 3
+
+    # the same search, with a SIGTERM to its process at trial 1's 5th step (trial 0 random, 1 and 2 from TPE)
+    script = tmp_path / "terminated.py"
+    script.write_text(TERMINATED)
+    search_proc = subprocess.run(
+        command(tmp_path, "cut", *longer, script=script), cwd=tmp_path, capture_output=True, text=True, timeout=900
+    )
+    assert search_proc.returncode == 128 + signal.SIGTERM, search_proc.stderr[-3000:]
+    cut = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{tmp_path / 'cut' / 'study.db'}")
+    assert [t.state.name for t in cut.trials] == ["COMPLETE", "RUNNING"]  # trial 1 left for the re-run
+    assert json.loads((tmp_path / "cut" / "1" / "metrics.json").read_text())["status"] == "interrupted"
+
+    again, resumed, resumed_records = search(tmp_path, "cut", *longer)  # the same command again: exit 0
+    assert [t.number for t in resumed.trials] == [0, 1, 2]
+    assert [t.params for t in resumed.trials] == [t.params for t in study.trials]
+    assert [t.value for t in resumed.trials] == [t.value for t in study.trials]  # identical, not close
+    for a, b, trial_dir in zip(records, resumed_records, sorted(again.glob("[0-9]"))):
+        assert b["status"] == "completed" and a["results"] == b["results"]
+        # each trial's directory holds the config of the run it recorded
+        assert yaml.safe_load((trial_dir / ".hydra" / "overrides.yaml").read_text()) == b["overrides"]
+    best = yaml.safe_load((again / "optimization_results.yaml").read_text())
+    assert best["best_value"] == min(t.value for t in study.trials) and best["completed"] == 3
 
 
 @pytest.mark.slow  # by default: test_tuned.py's hybrid search (same TPE, same val/loss) with poisoned labels

@@ -1,4 +1,4 @@
-"""A search's space and budget are checked before any trial (hybrid_sysid.experiments.tuned.check_search), both
+"""A search's space and budget are checked before any trial (hybrid_sysid.experiments.search.check_search), both
 for hparams_search (the preflight of hybrid-sysid) and experiment=tuned."""
 
 import os
@@ -10,7 +10,7 @@ import pytest
 from hybrid_sysid.config import ConfigError
 
 pytest.importorskip("optuna")
-from hybrid_sysid.experiments.tuned import check_search, search_space  # noqa: E402
+from hybrid_sysid.experiments.search import check_search, search_space  # noqa: E402
 
 GOOD = {"model.optim.lr": "tag(log, interval(0.002, 0.05))", "model.net.channels": "choice(16, 32, 48)"}
 

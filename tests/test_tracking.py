@@ -107,7 +107,7 @@ def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
     monkeypatch.setattr(app, "installed", lambda module: False)
     assert (
         app.missing_extra(["seed=1", "hparams_search=fast_cnn"])
-        == 'hparams_search=fast_cnn needs hydra-optuna-sweeper, which is not installed: pip install -e ".[search]"'
+        == 'hparams_search=fast_cnn needs optuna, which is not installed: pip install -e ".[search]"'
     )
     assert 'pip install -e ".[slurm]"' in app.missing_extra(["launcher=slurm"])
     assert (

@@ -1,4 +1,4 @@
-"""experiment=tuned (hybrid_sysid.experiments.tuned): the search space read as hydra-optuna-sweeper reads it, trial 0
+"""experiment=tuned (hybrid_sysid.experiments.tuned): the search space read from Hydra's sweep syntax, trial 0
 is the defaults, the tuned runs carry the best trial's values (the lowest recorded validation figure), a hybrid search
 never reads labels, a re-run trains nothing, and the sweep as a user runs it ends with a table of the default and
 tuned runs only and the searches' table."""
@@ -17,7 +17,8 @@ optuna = pytest.importorskip("optuna", reason='needs the search extra: pip insta
 
 from hybrid_sysid.config import ConfigError  # noqa: E402
 from hybrid_sysid.experiments.presets import preset  # noqa: E402
-from hybrid_sysid.experiments.tuned import defaults_in, run_tuned, search_space  # noqa: E402
+from hybrid_sysid.experiments.search import search_space  # noqa: E402
+from hybrid_sysid.experiments.tuned import defaults_in, run_tuned  # noqa: E402
 
 TINY = [
     "experiment=tuned",
@@ -31,18 +32,21 @@ TINY = [
 ]
 
 
-def test_the_space_is_the_one_hydra_optuna_sweeper_builds_from_the_preset():
-    impl = pytest.importorskip("hydra_plugins.hydra_optuna_sweeper._impl")  # the reference: the sweeper's reading
-    from hydra.core.override_parser.overrides_parser import OverridesParser
+def test_the_space_is_the_presets_text_as_optuna_distributions():
+    from optuna.distributions import CategoricalDistribution as C
+    from optuna.distributions import FloatDistribution as F
 
-    parser = OverridesParser.create()
-    fast_cnn = dict(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
-    for params in (fast_cnn, {"a": "interval(1, 4)", "b": "tag(log, interval(1, 100))", "c": "choice(x, y)"}):
-        theirs = {
-            k: impl.create_optuna_distribution_from_override(parser.parse_override(f"{k}={v}"))
-            for k, v in params.items()
-        }
-        assert search_space(params) == theirs
+    # the reference: conf/hparams_search/fast_cnn.yaml's params, written out by hand
+    assert search_space(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params) == {
+        "model.optim.lr": F(0.002, 0.05, log=True),
+        "model.optim.weight_decay": F(0.0001, 0.1, log=True),
+        "model.net.channels": C([16, 32, 48]),
+        "model.net.kernel_size": C([5, 7, 9, 11]),
+        "model.optim.warmup_fraction": F(0.1, 0.5),
+    }
+    # Hydra reads an interval's bounds as floats, integers included
+    others = {"a": "interval(1, 4)", "b": "tag(log, interval(1, 100))", "c": "choice(x, y)"}
+    assert search_space(others) == {"a": F(1.0, 4.0), "b": F(1.0, 100.0, log=True), "c": C(["x", "y"])}
     with pytest.raises(ConfigError, match=r"hydra.sweeper.params.a = 'range\(1,4\)' is not allowed"):
         search_space({"a": "range(1,4)"})
 

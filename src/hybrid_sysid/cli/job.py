@@ -36,6 +36,7 @@ from hybrid_sysid.runs.rundir import RunDir, hold_for_writing
 
 log = logging.getLogger("hybrid_sysid")
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
+SEARCH_SWEEPER = "hydra_plugins.hybrid_sysid_search.StudySweeper"  # conf/hydra/sweeper/study.yaml
 STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted, jobs not yet started skip
 # one process runs one command: what its signal handlers and its jobs share
 _state = {"received": None, "raised": False, "sweep_dir": None, "task_started": False, "locks": {}}
@@ -213,11 +214,10 @@ class Preflight(Callback):
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = _state["sweep_dir"] = Path(str(config.hydra.sweep.dir))
         try:
-            if "optuna" in str(config.hydra.sweeper.get("_target_", "")):  # a search: its space before any trial
-                from hybrid_sysid.experiments.tuned import check_search
+            if is_search(config):  # a search: its space and settings before any trial
+                from hybrid_sysid.experiments.search import study_settings
 
-                s = config.hydra.sweeper
-                check_search(task_config(config), s.get("params"), s.get("n_trials"))
+                study_settings(task_config(config), config.hydra.sweeper, config.hydra.overrides.task)
             make_dir(sweep_dir, "hydra.sweep.dir")
             hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
         except ConfigError as exc:
@@ -235,6 +235,16 @@ class Preflight(Callback):
                 f"hydra.sweep.dir = {sweep_dir} holds a sweep of other overrides ({' '.join(was[0])}); "
                 "re-run it with the same ones, or choose another hydra.sweep.dir"
             )
+
+
+def is_search(config: DictConfig) -> bool:
+    """Whether the sweep is a hyperparameter search (the study sweeper, hybrid_sysid.cli.search)."""
+    return str(config.hydra.sweeper.get("_target_", "")) == SEARCH_SWEEPER
+
+
+def sweep_stopped(sweep_dir: Path) -> bool:
+    """Whether a signal has come, to this process or (the sweep's mark) to any of the sweep's processes."""
+    return _state["received"] is not None or (sweep_dir / STOP_MARKER).exists()
 
 
 def _sweep_of(cfg: DictConfig) -> tuple:
@@ -269,8 +279,8 @@ def make_dir(path: Path, key: str) -> None:
 
 # an option that needs an optional package -> (the module it needs, the install that brings it)
 EXTRAS = {
-    "hparams_search=": ("hydra_plugins.hydra_optuna_sweeper", 'pip install -e ".[search]"'),
-    "hydra/sweeper=optuna": ("hydra_plugins.hydra_optuna_sweeper", 'pip install -e ".[search]"'),
+    "hparams_search=": ("optuna", 'pip install -e ".[search]"'),
+    "hydra/sweeper=study": ("optuna", 'pip install -e ".[search]"'),
     "experiment=tuned": ("optuna", 'pip install -e ".[search]"'),
     "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
     "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),

@@ -1,10 +1,9 @@
 """``hybrid-sysid``: compose the config, check it, run its task (one run, a transfer chain, a tuned comparison),
 draw the run's figures. The job's signals, interruption and failure records: hybrid_sysid.cli.job.
 
-Under a hyperparameter search (hydra-optuna-sweeper, conf/hparams_search) a job returns one number: the
-validation figure its model selection used (``best_score`` of its record: val/loss for a label-free objective,
-val/rel_dev otherwise; trainer.monitor). A failed job returns None, which the sweeper cannot cast to a number:
-it records a failed trial and the study goes on (a NaN would stop the whole study in optuna's ``tell``).
+A job returns its record. Under a hyperparameter search (hybrid_sysid.cli.search, conf/hparams_search) the
+study reads its ``best_score``: the validation figure its model selection used (val/loss for a label-free
+objective, val/rel_dev otherwise; trainer.monitor).
 """
 
 from __future__ import annotations
@@ -42,12 +41,6 @@ class TrainPreflight(Preflight):
             RunDir(str(cfg.resume)).check_resume(cfg, overrides)
 
 
-def search_value(record: dict) -> float | None:
-    """What a job returns to a hyperparameter search: its model-selection figure, None if it has none."""
-    value = record.get("best_score")
-    return None if value is None else float(value)
-
-
 def run_task(
     cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, experiment: str | None, run_name: str | None
 ) -> dict:
@@ -72,7 +65,6 @@ def hydra_main(cfg: DictConfig) -> Any:
     hc = HydraConfig.get()
     run_dir, overrides = Path(hc.runtime.output_dir), list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
-    searching = "optuna" in str(hc.sweeper.get("_target_", ""))
     sweep_dir = Path(hc.sweep.dir) if multirun else None
     # in a tracker, a sweep's jobs are runs of one experiment named after the sweep directory
     experiment = sweep_dir.name if multirun else None
@@ -87,7 +79,7 @@ def hydra_main(cfg: DictConfig) -> Any:
     )
     if cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
         _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
-    return search_value(record) if searching else record
+    return record
 
 
 def _draw_figures(run_dir: Path) -> None:

@@ -14,14 +14,13 @@ One job per objective (the sweep runs them side by side) does, in its own direct
 
 A sub-run's overrides are the job's plus ``tuning=default|tuned`` and its seed (a trial's: ``tuning=trial``, its
 number and values), so the sweep summary, which leaves ``*/search/*`` out, has one row per objective, tuning and
-K. The study lives in memory: a re-run asks the same seeded sampler, which proposes the same values, finds each
-completed trial's record and trains only what is missing.
+K. The study lives in memory: a re-run asks the sampler seeded per trial (hybrid_sysid.experiments.search), which
+proposes the same values, finds each completed trial's record and trains only what is missing.
 """
 
 from __future__ import annotations
 
 import logging
-import warnings
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
@@ -30,83 +29,12 @@ from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.presets import preset
+from hybrid_sysid.experiments.search import check_sampler, check_search, sampler_for
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.run import train
 
 log = logging.getLogger("hybrid_sysid")
 SEARCH, DEFAULT, TUNED = "search", "default", "tuned"  # sub-directories of a job, and the values of ``tuning``
-
-
-def search_space(params) -> dict:
-    """Optuna distributions for a preset's ``hydra.sweeper.params`` (Hydra's sweep syntax, read by Hydra's own
-    parser): choice(...) is categorical; interval(a, b) is uniform, integer when a and b are, and log-uniform
-    when tagged log, as hydra-optuna-sweeper reads them."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
-    from optuna import distributions as d
-
-    parser, space = OverridesParser.create(), {}
-    for key, spec in params.items():
-        value = parser.parse_override(f"{key}={spec}").value()
-        if isinstance(value, ChoiceSweep):
-            space[key] = d.CategoricalDistribution(list(value.list))
-        elif isinstance(value, IntervalSweep):
-            ints, log_scale = isinstance(value.start, int) and isinstance(value.end, int), "log" in value.tags
-            kind = {
-                (True, True): d.IntLogUniformDistribution,
-                (True, False): d.IntUniformDistribution,
-                (False, True): d.LogUniformDistribution,
-                (False, False): d.UniformDistribution,
-            }[ints, log_scale]
-            space[key] = kind(value.start, value.end)
-        else:
-            raise ConfigError(
-                f"tuned.search: hydra.sweeper.params.{key} = {spec!r} is not allowed: "
-                "choice(...) or interval(a, b), optionally tag(log, interval(a, b))"
-            )
-    return space
-
-
-def check_search(cfg: DictConfig, params, n_trials, where: str = "hydra.sweeper") -> dict:
-    """A search's space and budget, checked before any trial: n_trials >= 1; each parameter choice(...) or
-    interval(a, b) with a < b (and a > 0 when tagged log), and every value it can take of the type of the
-    config's own value at that key (a text choice for a float key would only fail inside a trial, and stop a
-    study). Returns the space (``search_space``); ConfigError naming ``where``'s key otherwise."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-    from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
-
-    if isinstance(n_trials, bool) or not isinstance(n_trials, int) or n_trials < 1:
-        raise ConfigError(f"{where}.n_trials = {n_trials!r} is not allowed: an integer >= 1")
-    parser = OverridesParser.create()
-    for key, spec in (params or {}).items():
-        name = f"{where}.params.{key} = {spec!r} is not allowed"
-        try:
-            value = parser.parse_override(f"{key}={spec}").value()
-        except Exception as exc:  # noqa: BLE001 - Hydra's parser raises its own classes
-            raise ConfigError(f"{name}: {' '.join(str(exc).split())}") from None
-        if isinstance(value, IntervalSweep):
-            if not value.start < value.end:
-                raise ConfigError(f"{name}: interval(a, b) needs a < b")
-            if "log" in value.tags and not value.start > 0:
-                raise ConfigError(f"{name}: a log interval needs bounds > 0")
-            values = [value.start, value.end]
-        elif isinstance(value, ChoiceSweep):
-            values = list(value.list)
-        else:
-            raise ConfigError(f"{name}: choice(...) or interval(a, b), optionally tag(log, interval(a, b))")
-        current = OmegaConf.select(cfg, key, default=None)
-        if current is None:
-            raise ConfigError(f"{name}: the config has no value at {key} to search")
-        for v in values:
-            number = isinstance(v, (int, float)) and not isinstance(v, bool)
-            wanted = isinstance(current, (int, float)) and not isinstance(current, bool)
-            if wanted != number or (
-                isinstance(current, int) and not isinstance(current, bool) and isinstance(v, float)
-            ):
-                raise ConfigError(
-                    f"{name}: {v!r} is not of the type of {key} ({type(current).__name__}, {current!r} in the config)"
-                )
-    return search_space(params or {})
 
 
 def defaults_in(cfg: DictConfig, space: dict) -> dict:
@@ -166,13 +94,12 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     validate(with_values(cfg, defaults, t.seeds[0]))
     base = [o for o in job_overrides if not o.startswith("seed=")]
 
-    sampler = optuna.samplers.TPESampler(**{k: v for k, v in sweeper.sampler.items() if k != "_target_"})
-    study = optuna.create_study(direction=sweeper.direction, sampler=sampler, study_name=sweeper.study_name)
-    with warnings.catch_warnings():  # enqueue_trial is marked experimental in optuna 2.10
-        warnings.simplefilter("ignore")
-        study.enqueue_trial(defaults)
+    sampler = check_sampler(sweeper.sampler, "tuned.search: hydra.sweeper.sampler")
+    study = optuna.create_study(direction=sweeper.direction, study_name=sweeper.study_name)
+    study.enqueue_trial(defaults)
     monitors = set()
     for n in range(t.n_trials):
+        study.sampler = sampler_for(sampler, n)
         trial = study.ask(space)
         overrides = base + ["tuning=trial", f"trial={n}"] + as_overrides(trial.params) + [f"seed={t.trial_seed}"]
         sub = with_values(cfg, trial.params, t.trial_seed, trial_settings)
