@@ -29,11 +29,24 @@ def _data_fields() -> list:
             if f.name not in OUTSIDE_DATA:
                 default = f.default if f.default is not NO_DEFAULT else MISSING
                 out.append((f.name, hints[f.name], field(default=default)))
-    return out + [("cache_dir", str, field(default="outputs/.cache"))]
+    return out + [("cache_dir", str, field(default="${paths.cache_dir}"))]
 
 
 DataConfig = make_dataclass("DataConfig", _data_fields())
 DataConfig.__doc__ = "The data section: DatasetSpec's and WindowSettings' fields, and cache_dir."
+
+
+@dataclass
+class PathsConfig:
+    """Where everything is written (conf/paths): runs, sweeps, evaluations, the dataset cache and the trackers'
+    stores, all under ``root`` by default, so paths.root=/somewhere moves them at once."""
+
+    root: str = "outputs"
+    runs_dir: str = "${paths.root}/runs"  # single runs (hydra.run.dir)
+    multirun_dir: str = "${paths.root}/multirun"  # sweeps (hydra.sweep.dir)
+    evals_dir: str = "${paths.root}/evals"  # hybrid-sysid-eval's single runs
+    cache_dir: str = "${oc.env:HYBRID_SYSID_CACHE,${paths.root}/.cache}"  # simulated datasets (data.cache_dir)
+    trackers_dir: str = "${paths.root}"  # experiment trackers' stores (logger=mlflow's mlflow.db)
 
 
 @dataclass
@@ -75,6 +88,7 @@ class TrainerConfig:
     deterministic: bool = True
     monitor: str = "auto"
     progress_bar: bool = True
+    profiler: Optional[str] = None  # simple or advanced: Lightning's profiler, its report in the run directory
     extra: Dict[str, Any] = field(default_factory=dict)  # passed to lightning.Trainer as is
 
 
@@ -125,6 +139,9 @@ class Config:
     evaluation: EvaluationConfig = field(default_factory=EvaluationConfig)
     # experiment trackers: name -> a Lightning logger's _target_ and arguments (conf/logger; {} for none)
     logger: Dict[str, Any] = field(default_factory=dict)
+    # Lightning callbacks beside the run's own: name -> a callback's _target_ and arguments (conf/callbacks; {})
+    callbacks: Dict[str, Any] = field(default_factory=dict)
+    paths: PathsConfig = field(default_factory=PathsConfig)  # where runs, sweeps, cache and trackers go (conf/paths)
     # the car's constants (QuarterCar's fields; the group conf/car, car=paper by default), e.g. car.c3=700
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
     transfer: Optional[TransferConfig] = None  # task=transfer's settings
@@ -139,9 +156,11 @@ class EvalConfig(Config):
     run: str = MISSING
 
 
-# the schema's sections, whose keys are fixed (model.net, objective, baseline, car and trainer.extra are free-form)
+# the schema's sections, whose keys are fixed (model.net, objective, baseline, car, logger, callbacks and
+# trainer.extra are free-form)
 SECTIONS = {
     "": Config,
+    "paths": PathsConfig,
     "data": DataConfig,
     "road": RoadConfig,
     "noise": NoiseConfig,

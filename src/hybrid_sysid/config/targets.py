@@ -1,5 +1,5 @@
 """The classes a config may name by ``_target_``: this package's networks, objectives and baselines, and
-Lightning's loggers. Nothing else is ever imported or called from a config.
+Lightning's loggers and callbacks. Nothing else is ever imported or called from a config.
 
 A run directory is data a user may have received from someone else (its .hydra/config.yaml is read by
 hybrid-sysid-eval, hybrid-sysid-predict, load_estimator, init_from and resume=), so a ``_target_`` is looked up
@@ -18,18 +18,21 @@ from hybrid_sysid.core.checks import ConfigError, format_value
 _NETWORKS = ("FastCNN", "PaperCNN")
 _OBJECTIVES = ("LabelledObjective", "HybridObjective", "CombinedObjective")
 _LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
+_CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")
 # config key -> {the _target_ a config may give: (module, class name)}
 KNOWN: dict[str, dict[str, tuple[str, str]]] = {
     "model.net": {f"hybrid_sysid.model.networks.{n}": ("hybrid_sysid.model.networks", n) for n in _NETWORKS},
     "objective": {f"hybrid_sysid.model.objectives.{n}": ("hybrid_sysid.model.objectives", n) for n in _OBJECTIVES},
     "baseline": {"hybrid_sysid.baselines.LeastSquaresFit": ("hybrid_sysid.baselines.least_squares", "LeastSquaresFit")},
     "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in _LOGGERS},
+    "callbacks": {f"lightning.pytorch.callbacks.{n}": ("lightning.pytorch.callbacks", n) for n in _CALLBACKS},
 }
+FAMILIES = ("logger", "callbacks")  # a mapping of names, each to a _target_: logger.<name>, callbacks.<name>
 
 
 def _family(key: str) -> str:
-    """logger.<name> -> logger; model.net, objective and baseline are their own."""
-    return "logger" if key.startswith("logger.") else key
+    """logger.<name> -> logger, callbacks.<name> -> callbacks; model.net, objective and baseline are their own."""
+    return next((f for f in FAMILIES if key.startswith(f + ".")), key)
 
 
 def check_target(target, key: str) -> None:

@@ -22,7 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config.schema import SECTIONS
 from hybrid_sysid.config.targets import arguments, build, check_target
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
-from hybrid_sysid.core.options import MONITORS, OPTIMIZERS, SCHEDULES, TASKS
+from hybrid_sysid.core.options import MONITORS, OPTIMIZERS, PROFILERS, SCHEDULES, TASKS
 from hybrid_sysid.data.dataset import CHANNELS
 from hybrid_sysid.data.spec import DatasetSpec, WindowSettings, check_eval_windows
 from hybrid_sysid.physics import QuarterCar
@@ -86,7 +86,10 @@ def validate(cfg: DictConfig) -> None:
     if t.threads is not None and t.threads < 1:
         bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
     check_choice("trainer.monitor", t.monitor, MONITORS)
+    if t.get("profiler") is not None:
+        check_choice("trainer.profiler", t.profiler, PROFILERS)
     validate_loggers(cfg)
+    validate_callbacks(cfg)
     if cfg.get("baseline") is not None:  # each checks the window against what it reads
         _validate_baseline(cfg, spec)
     else:
@@ -268,3 +271,23 @@ def validate_loggers(cfg: DictConfig) -> None:
         needs = next((mods for cls, mods in LOGGER_MODULES.items() if target.endswith("." + cls)), ())
         if needs and not any(importlib.util.find_spec(m) for m in needs):
             raise ConfigError(f"logger.{name} needs the {needs[0]} package, which is not installed: {LOGGERS_EXTRA}")
+
+
+# a callback class -> the module it needs; it comes with the "rich" extra
+CALLBACK_MODULES = {"RichProgressBar": "rich", "RichModelSummary": "rich"}
+RICH_EXTRA = 'pip install -e ".[rich]"'
+
+
+def validate_callbacks(cfg: DictConfig) -> None:
+    """Each configured callback (conf/callbacks) names an allowed class, the library it needs is installed, and
+    a monitor it watches is one trainer.monitor may name (auto: the run's own)."""
+    for name, cb in (cfg.get("callbacks") or {}).items():
+        target = str(cb.get("_target_", "")) if isinstance(cb, DictConfig) else ""
+        if not target:
+            bad(f"callbacks.{name}", cb, "a mapping with the _target_ of a Lightning callback (see conf/callbacks)")
+        check_target(target, f"callbacks.{name}")
+        module = CALLBACK_MODULES.get(target.rsplit(".", 1)[-1])
+        if module and not importlib.util.find_spec(module):
+            raise ConfigError(f"callbacks.{name} needs the {module} package, which is not installed: {RICH_EXTRA}")
+        if "monitor" in cb:
+            check_choice(f"callbacks.{name}.monitor", cb.monitor, MONITORS)

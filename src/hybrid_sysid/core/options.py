@@ -18,6 +18,8 @@ OPTIMIZERS = {"adam": "Adam", "adamw": "AdamW"}
 SCHEDULES = ("constant", "onecycle", "cosine")
 # trainer.monitor: the validation figure that selects the best checkpoint (auto: by the objective)
 MONITORS = ("auto", "val/loss", "val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev")
+# trainer.profiler: Lightning's profilers (null: none), their report written into the run directory
+PROFILERS = ("simple", "advanced")
 # hybrid_sysid.baselines.LeastSquaresFit
 SPANS = ("window", "series")
 FILTERS = ("none", "bandpass")

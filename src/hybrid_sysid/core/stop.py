@@ -1,9 +1,12 @@
-"""A termination signal as the work sees it: ``Interrupted``, and the request that safe points check.
+"""A termination signal as the work sees it: a request that safe points check, and ``Interrupted``, which they
+raise.
 
-The command-line entry points (hybrid_sysid.cli.job) raise Interrupted from their signal handler, at once, and
-also ``request`` the stop here. An exception raised from a signal handler lands in whatever code runs at that
-moment, and a few places swallow it (a finaliser, a library's broad handler), so the work would go on; the safe
-points (``check``: before a run scores its model and before it writes its record) raise it again there.
+The command-line entry points' signal handler (hybrid_sysid.cli.job) only ``request``s the stop: an exception
+raised from a signal handler would land in whatever code runs at that moment, and a few places swallow it (a
+finaliser, a weak-reference callback, a library's broad handler), so the work would go on as if no signal had
+come. The work raises Interrupted itself, at its safe points (``check``): after every training and validation
+batch (training.callbacks.StopAtSafePoints), after every evaluation batch, while waiting for the dataset cache's
+lock, before a run scores its model and before it writes its record; a sweep checks between its jobs.
 """
 
 from __future__ import annotations
@@ -29,6 +32,11 @@ def request(signum: int) -> None:
 
 def clear() -> None:
     _requested["signum"] = None
+
+
+def requested() -> int | None:
+    """The signal whose stop was requested, None if none was."""
+    return _requested["signum"]
 
 
 def check() -> None:

@@ -37,8 +37,9 @@ log = logging.getLogger("hybrid_sysid")
 CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
 CHECKPOINTS = ("best.ckpt", "last.ckpt")  # the weights a trained run is used with: best, else last
 WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one process that writes there
-# keys that cannot change a run's numbers: a resumed run may differ in them
-RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar"}
+# keys that cannot change a run's numbers: a resumed run may differ in them (a name ending in "." frees every key
+# under it: where a run's files go, conf/paths)
+RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths."}
 
 
 class RunDir:
@@ -167,11 +168,7 @@ class RunDir:
             return
         now = flatten(OmegaConf.to_container(cfg, resolve=False))
         was = flatten(saved if isinstance(saved, dict) else {})
-        differ = [
-            k
-            for k in sorted(set(now) | set(was))
-            if k not in RESUME_FREE and now.get(k, "(unset)") != was.get(k, "(unset)")
-        ]
+        differ = [k for k in sorted(set(now) | set(was)) if not _resume_free(k) and _value(now, k) != _value(was, k)]
         held = [k for k in differ if k in was]
         if differ and not held:  # every difference is a key the file lacks: a damaged file, not another run
             lacking = [k for k in differ if k in now]
@@ -185,9 +182,7 @@ class RunDir:
             )
         if differ:
             first = held + [k for k in differ if k not in held]  # values it holds first, then keys it lacks
-            shown = "; ".join(
-                f"{k} = {was.get(k, '(unset)')!r} there, {now.get(k, '(unset)')!r} here" for k in first[:3]
-            )
+            shown = "; ".join(f"{k} = {_value(was, k)!r} there, {_value(now, k)!r} here" for k in first[:3])
             bad(
                 "resume",
                 str(self.path),
@@ -254,3 +249,14 @@ def _loadable(path: Path) -> bool:
         return True
     except Exception:  # noqa: BLE001 - truncated, garbage, another format: all mean "cannot resume from it"
         return False
+
+
+def _resume_free(key: str) -> bool:
+    return key in RESUME_FREE or any(key.startswith(p) for p in RESUME_FREE if p.endswith("."))
+
+
+def _value(flat: dict, key: str):
+    """A flattened config's value at ``key``; an empty mapping counts as unset (a run saved before a group such as
+    callbacks existed lacks the key that now holds {})."""
+    value = flat.get(key, "(unset)")
+    return "(unset)" if value == {} else value

@@ -25,6 +25,7 @@ from hybrid_sysid.runs.records import run_record
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.build import (
     build_baseline,
+    build_callbacks,
     build_datamodule,
     build_model,
     build_trainer,
@@ -83,7 +84,7 @@ def train(
     )
     clock = TrainingClock()
     curves = LearningCurves(clock, _noise_levels(cfg), every_n_steps=cfg.trainer.get("curve_every_n_steps"))
-    trainer = build_trainer(cfg, run.path, [clock, curves, ckpt], loggers)
+    trainer = build_trainer(cfg, run.path, [clock, curves, ckpt, *build_callbacks(cfg, monitor)], loggers)
     dm.setup("fit")
     last = run.resume_checkpoint()
     if last is not None:
