@@ -29,7 +29,7 @@ from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
 # keys an evaluation may change; anything else the run trained with stays
-OVERRIDABLE = ("data", "car", "road", "noise", "evaluation")
+OVERRIDABLE = ("data", "car", "road", "noise", "evaluation", "paths")
 LAUNCHER_KEYS = ("trainer.threads", "trainer.progress_bar")  # what a launcher group sets for its workers
 
 

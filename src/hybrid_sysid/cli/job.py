@@ -39,44 +39,29 @@ SIGNALS = (signal.SIGTERM, signal.SIGINT)
 SEARCH_SWEEPER = "hydra_plugins.hybrid_sysid_search.StudySweeper"  # conf/hydra/sweeper/study.yaml
 STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted, jobs not yet started skip
 # one process runs one command: what its signal handlers and its jobs share
-_state = {"received": None, "raised": False, "sweep_dir": None, "task_started": False, "locks": {}}
+_state = {"received": None, "sweep_dir": None, "task_started": False, "locks": {}}
 
 
-def _raise_once(signum, frame):
+def _request_stop(signum, frame):
+    """Within a job: remember the signal; the work raises Interrupted at its next safe point (core.stop)."""
     _state["received"] = _state["received"] or signum
-    stop.request(signum)  # for the safe points, should the exception below be swallowed where it lands
-    if not _state["raised"]:  # a second signal (Ctrl-C twice) must not cut the writing of the record short
-        _state["raised"] = True
-        raise Interrupted(signum)
-
-
-def _redeliver(unraisable) -> None:
-    """sys.unraisablehook: an Interrupted raised while Python ran a finaliser or a weak-reference callback is only
-    printed ("Exception ignored in ...") and the job would go on as if no signal had come; deliver it again, to
-    the code that runs next."""
-    if isinstance(unraisable.exc_value, Interrupted):
-        _state["raised"] = False
-        signal.raise_signal(unraisable.exc_value.signum)
-        return
-    sys.__unraisablehook__(unraisable)
+    stop.request(signum)
 
 
 @contextmanager
 def interruptible():
-    """Within: SIGTERM and SIGINT raise Interrupted (Lightning, which installs its own SIGTERM handler during
-    fit, calls this one after its own, then tears down and re-raises). The previous handlers return after."""
-    _state["raised"] = False
+    """Within: SIGTERM and SIGINT request a stop that the work's safe points turn into Interrupted (Lightning, which
+    installs its own SIGTERM handler during fit, calls this one after its own). The previous handlers return
+    after."""
     stop.clear()
     previous = {s: signal.getsignal(s) for s in SIGNALS}
-    hook, sys.unraisablehook = sys.unraisablehook, _redeliver
     for s in SIGNALS:
-        signal.signal(s, _raise_once)
+        signal.signal(s, _request_stop)
     try:
         yield
     finally:
         for s, handler in previous.items():
             signal.signal(s, handler)
-        sys.unraisablehook = hook
 
 
 def _children() -> list[int]:
@@ -157,7 +142,12 @@ def run_job(
             return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     try:
         with interruptible():
-            return work()
+            try:
+                return work()
+            except SystemExit:  # e.g. Lightning's SIGTERMException, raised at its own safe points
+                if stop.requested() is None:
+                    raise
+                raise Interrupted(stop.requested()) from None
     except Interrupted as exc:
         name = signal.Signals(exc.signum).name
         result = run.record_end(overrides, seed, "interrupted", f"interrupted by {name}")
@@ -282,6 +272,7 @@ EXTRAS = {
     "hparams_search=": ("optuna", 'pip install -e ".[search]"'),
     "hydra/sweeper=study": ("optuna", 'pip install -e ".[search]"'),
     "experiment=tuned": ("optuna", 'pip install -e ".[search]"'),
+    "callbacks=rich_progress_bar": ("rich", 'pip install -e ".[rich]"'),
     "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
     "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
 }

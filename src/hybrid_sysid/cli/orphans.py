@@ -59,7 +59,8 @@ def _watch(parent_pid: int, poll: float, grace: float) -> None:
         os.getpid(),
         grace,
     )
-    # the main thread's handler runs: Interrupted within a job (recorded), stop_sweep between jobs (remembered)
+    # the main thread's handler runs: a stop request within a job (recorded at its next safe point), stop_sweep
+    # between jobs (remembered)
     os.kill(os.getpid(), signal.SIGTERM)
     time.sleep(grace)
     os._exit(128 + signal.SIGTERM)

@@ -9,8 +9,9 @@ import warnings
 from pathlib import Path
 
 import numpy as np
-from filelock import FileLock
+from filelock import FileLock, Timeout
 
+from hybrid_sysid.core import stop
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.data.dataset import ARRAYS, SimulatedDataset, generate_dataset
 from hybrid_sysid.data.spec import DatasetSpec
@@ -105,7 +106,7 @@ def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
         lock = FileLock(str(path) + ".lock", timeout=-1)
-        lock.acquire()
+        _acquire(lock)
     except OSError as exc:
         lock = None
         _cache_warning(
@@ -131,3 +132,14 @@ def get_dataset(spec: DatasetSpec, cache_dir: str | os.PathLike | None = None) -
     finally:
         if lock is not None:
             lock.release()
+
+
+def _acquire(lock: FileLock) -> None:
+    """Wait for the lock (another job simulating the same dataset), checking for a stop request (core.stop)
+    twice a second: a signal must not wait for the other job's dataset."""
+    while True:
+        try:
+            lock.acquire(timeout=0.5)
+            return
+        except Timeout:
+            stop.check()

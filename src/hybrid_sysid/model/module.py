@@ -9,6 +9,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hybrid_sysid.core import stop
 from hybrid_sysid.core.options import OPTIMIZERS, SCHEDULES
 from hybrid_sysid.model.metrics import relative_deviation
 
@@ -89,6 +90,7 @@ class IdentificationModule(L.LightningModule):
         self.eval()
         preds, trues = [], []
         for batch in dm.eval_dataloader(split, noise_std, limit, windows):
+            stop.check()  # a safe point (core.stop)
             preds.append(self(batch["signals"].to(self.device)).cpu())
             trues.append(batch["params"])
         self.train(was_training)

@@ -15,6 +15,7 @@ from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.spec import DatasetSpec
 from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
 from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.training.callbacks import StopAtSafePoints, ValidateAtEnd
 
 log = logging.getLogger("hybrid_sysid")
 # the prior of p is derived from the data (${p_prior:...}), not part of the architecture
@@ -72,10 +73,13 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
     experiment trackers (hybrid_sysid.training.tracking); none by default. trainer.extra and then ``overrides``
     may replace any argument."""
     t = cfg.trainer
-    callbacks = list(callbacks)
-    if t.progress_bar:
+    callbacks = [StopAtSafePoints(), ValidateAtEnd(), *callbacks]
+    bar = L.pytorch.callbacks.ProgressBar
+    if not t.progress_bar:  # bars off (a parallel launcher's workers): a configured bar too
+        callbacks = [c for c in callbacks if not isinstance(c, bar)]
+    elif not any(isinstance(c, bar) for c in callbacks):  # the default bar unless callbacks= chose another
         # Lightning redraws the bar every step by default; every 10th step reads as well and costs less
-        callbacks.append(L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10))
+        callbacks = [*callbacks, L.pytorch.callbacks.TQDMProgressBar(refresh_rate=10)]
     kwargs = dict(
         max_steps=t.max_steps,
         val_check_interval=t.eval_every_n_steps,
@@ -91,9 +95,28 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         default_root_dir=str(run_dir),
         log_every_n_steps=LOG_EVERY,
     )  # the steps on which the module logs its training loss
+    if t.get("profiler"):
+        kwargs["profiler"] = build_profiler(t.profiler, run_dir)
     kwargs.update(t.get("extra", {}))
     kwargs.update(overrides)
     return L.Trainer(**kwargs)
+
+
+def build_callbacks(cfg: DictConfig, monitor: str) -> list:
+    """The Lightning callbacks of conf/callbacks (``callbacks.<name>``: a _target_ and its arguments), beside the
+    run's own; a ``monitor`` of auto is the run's model-selection figure ``monitor`` (monitor_of)."""
+    out = []
+    for name, node in (cfg.get("callbacks") or {}).items():
+        fill = {"monitor": monitor} if node.get("monitor") == "auto" else {}
+        out.append(build(node, f"callbacks.{name}", **fill))
+    return out
+
+
+def build_profiler(name: str, run_dir):
+    """Lightning's profiler ``name`` (simple, advanced), its report written into the run directory at the end of
+    training (fit-profiler.txt)."""
+    cls = {"simple": L.pytorch.profilers.SimpleProfiler, "advanced": L.pytorch.profilers.AdvancedProfiler}[name]
+    return cls(dirpath=str(run_dir), filename="profiler")
 
 
 def monitor_of(cfg: DictConfig, objective) -> str:

@@ -12,6 +12,7 @@ from typing import Sequence
 
 import lightning as L
 
+from hybrid_sysid.core import stop
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.training.tracking import curve_metrics, log_metrics
 
@@ -126,3 +127,25 @@ class RunCheckpoint(L.pytorch.callbacks.ModelCheckpoint):
         state["best_k_models"] = {str(here / Path(p).name): v for p, v in state.get("best_k_models", {}).items()}
         state["dirpath"] = self.dirpath
         super().load_state_dict(state)
+
+
+class StopAtSafePoints(L.Callback):
+    """The training's safe points (core.stop): after every training and validation batch, a termination signal
+    that the command's handler requested ends the fit with Interrupted, raised here rather than from the handler."""
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        stop.check()
+
+    def on_validation_batch_end(self, trainer, pl_module, outputs, batch, batch_idx, dataloader_idx=0) -> None:
+        stop.check()
+
+
+class ValidateAtEnd(L.Callback):
+    """A validation at the last step, whether or not it falls on trainer.eval_every_n_steps: a run shorter than
+    the interval is validated and has a best checkpoint. Lightning validates when training is asked to stop
+    (``should_stop``), and stopping at max_steps changes nothing else; where the last step is a validation step
+    already, it is validated once, as before."""
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        if trainer.max_steps > 0 and trainer.global_step >= trainer.max_steps:
+            trainer.should_stop = True

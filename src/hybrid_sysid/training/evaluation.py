@@ -7,6 +7,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from hybrid_sysid.core import stop
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.model.base import SplitPredictor
@@ -23,6 +24,7 @@ def score(
     results, frames = [], []
     evals = [("train", 0.0, 1), ("val", 0.0, 1)] + [("test", float(s), int(k)) for s in noise_levels for k in windows]
     for split, std, k in evals:
+        stop.check()  # a safe point (core.stop)
         pred, true = model.predict_split(dm, split, std, windows=k)
         results += summarise(pred, true, split=split, noise_std=std, windows=k)
         rows = dm.rows(split)
