@@ -9,7 +9,7 @@ import pytest
 
 from hybrid_sysid.config import ConfigError
 
-pytest.importorskip("optuna")
+optuna = pytest.importorskip("optuna")
 from hybrid_sysid.experiments.search import check_search, search_space  # noqa: E402
 
 GOOD = {"model.optim.lr": "tag(log, interval(0.002, 0.05))", "model.net.channels": "choice(16, 32, 48)"}
@@ -56,3 +56,24 @@ def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
         and proc.stderr.strip() == "error: hydra.sweeper.n_trials = 0 is not allowed: an integer >= 1"
     ), proc.stderr[-2000:]
     assert not sweep.exists()
+
+
+def test_a_stored_study_of_another_search_is_refused_in_one_line(make_cfg, tmp_path, capsys, monkeypatch):
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)  # with it, a refusal adds its traceback
+    from hybrid_sysid.cli.search import _own
+    from hybrid_sysid.experiments.search import study_settings
+
+    settings = {"params": GOOD, "n_trials": 3, "study_name": "s", "storage": "sqlite:///elsewhere.db"}
+    mine = study_settings(make_cfg(), settings, ["objective=hybrid"])
+    study = optuna.create_study(study_name="s")  # in memory: what matters is the attributes it holds
+    _own(study, tmp_path / "a", mine)  # a new study becomes this search's
+    _own(study, tmp_path / "a", mine)  # and resumes
+    for sweep_dir, arguments, what in [
+        (tmp_path / "b", ["objective=hybrid"], "of the search in"),
+        (tmp_path / "a", ["objective=labelled"], "of other overrides or another space"),
+    ]:
+        with pytest.raises(SystemExit) as exit_:
+            _own(study, sweep_dir, study_settings(make_cfg(), settings, arguments))
+        err = capsys.readouterr().err.strip()
+        assert exit_.value.code == 2 and err.startswith("error: hydra.sweeper.storage holds study 's'") and what in err
+        assert "\n" not in err
