@@ -8,6 +8,9 @@ INTEGRATIONS = ("t0", "window")
 AMPLITUDES = ("paper", "iso")
 # hybrid_sysid.model.objectives.HybridObjective
 WEIGHTINGS = ("none", "eiv")
+# what the hybrid objective fits the prediction to: the residual itself, or the per-window least-squares fit of
+# the residual's regressors (plain or in a metric whitened by their correlation)
+TARGETS = ("residual", "least_squares", "whitened")
 FILTER_KEYS = ("low_hz", "high_hz", "taps")
 NORMS = ("l1", "l2")
 # hybrid_sysid.model.networks: activation name -> torch.nn class name; FastCNN's downsampling

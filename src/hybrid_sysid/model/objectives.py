@@ -16,7 +16,7 @@ import torch
 from torch import nn
 
 from hybrid_sysid.core.checks import check_pair, format_value
-from hybrid_sysid.core.options import NORMS, WEIGHTINGS
+from hybrid_sysid.core.options import NORMS, TARGETS, WEIGHTINGS
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import filter_taps
 
@@ -86,6 +86,15 @@ class HybridObjective(nn.Module):
     squared residual, which pulls the plain fit towards p of little noise gain (attenuation bias); after the
     division the expectation is misfit / g(p) + sigma^2, least at the true p whatever sigma, so no noise level
     is needed (the total-least-squares idea).
+
+    ``target`` (docs/label_free.md): ``residual`` fits p to the residual as above. On clean, consistent windows the
+    residual is (p - p*) . (rel_vel, rel_disp), so the loss is dp^T G dp with G the regressors' 2 x 2 Gram
+    matrix, and G makes a relative error in p2 cost about a hundred times what the same error in p1 costs: the
+    network learns p1 poorly. ``least_squares`` takes the minimiser of the same residual per window instead,
+    p_ls = G^-1 b (float64, no gradient through it, a relative ridge ``ridge``), and fits p to it as the
+    labelled objective fits p to the labels: mean L1 of (p - p_ls) / ``p_scale``, equal weight for both. Still
+    no labels: p_ls comes from the signals alone. ``whitened``: (p - p_ls) / p_scale in the metric of the
+    regressors' correlation (G scaled to a unit diagonal), which keeps their coupling and drops their scales.
     """
 
     uses_labels = False  # model selection then stays label-free too (trainer.monitor=auto picks val/loss)
@@ -98,10 +107,24 @@ class HybridObjective(nn.Module):
         weighting: str = "none",
         dt: float | None = None,
         measurement: str = "consistent",
+        target: str = "residual",
+        p_scale: Sequence[float] | None = None,
+        ridge: float = 1e-9,
     ):
         super().__init__()
         if not (math.isfinite(eps) and eps >= 0):
             raise ValueError(f"eps = {eps} is invalid; it must be finite and >= 0")
+        if target not in TARGETS:
+            raise ValueError(f"objective.target = {target!r} is not allowed: one of {', '.join(TARGETS)}")
+        if target != "residual" and p_scale is None:
+            raise ValueError(f"objective.p_scale is missing: target = {target!r} needs it (${{p_prior:scale}})")
+        if target != "residual" and weighting != "none":
+            raise ValueError(f"objective.weighting = {weighting!r} is not allowed with target = {target!r}: none")
+        if not (math.isfinite(ridge) and 0 <= ridge < 1):
+            raise ValueError(f"objective.ridge = {ridge} is not allowed: finite, >= 0 and < 1")
+        self.target, self.ridge = target, float(ridge)
+        if p_scale is not None:
+            self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
         if weighting not in WEIGHTINGS:
             raise ValueError(f"objective.weighting = {weighting!r} is not allowed: one of {', '.join(WEIGHTINGS)}")
         if weighting == "eiv" and filter is None:
@@ -134,6 +157,8 @@ class HybridObjective(nn.Module):
         else:
             seat = batch["signals"][:, 0].to(pred)
             rel_vel, rel_disp = (batch[k].to(pred) for k in self.keys)
+        if self.target != "residual":
+            return self._to_least_squares(pred, seat, rel_vel, rel_disp)
         z_rec = -pred[:, :1] * rel_vel - pred[:, 1:2] * rel_disp
         mse = (seat - z_rec).pow(2).mean(dim=1)
         if self.weighting == "eiv":
@@ -142,6 +167,28 @@ class HybridObjective(nn.Module):
         if self.normalize:
             mse = mse / (seat.pow(2).mean(dim=1) + self.eps)
         return mse.mean()
+
+    def _to_least_squares(self, pred, seat, rel_vel, rel_disp) -> torch.Tensor:
+        p_ls, gram = least_squares_target(seat, rel_vel, rel_disp, self.ridge)
+        err = (pred - p_ls.to(pred)) / self.p_scale
+        if self.target == "least_squares":
+            return err.abs().sum(dim=1).mean()
+        d = gram.diagonal(dim1=1, dim2=2).sqrt()
+        corr = (gram / (d[:, :, None] * d[:, None, :])).to(pred)
+        return torch.einsum("bi,bij,bj->b", err, corr, err).mean()
+
+
+@torch.no_grad()
+def least_squares_target(seat, rel_vel, rel_disp, ridge: float = 1e-9) -> tuple[torch.Tensor, torch.Tensor]:
+    """Per window, the p that minimises the residual seat + p1 rel_vel + p2 rel_disp over the window, in float64:
+    (p_ls (B, 2), G (B, 2, 2)), G = A^T A with A = (rel_vel, rel_disp), p_ls = -G^-1 A^T seat. G's diagonal grows
+    by ``ridge`` times itself (a ridge in each regressor's own scale, which differ about a thousandfold), so a
+    window of no motion stays finite."""
+    a = torch.stack([rel_vel, rel_disp], dim=2).double()  # (B, W, 2)
+    gram = a.transpose(1, 2) @ a
+    b = -(a.transpose(1, 2) @ seat.double().unsqueeze(2))
+    shift = torch.diag_embed(ridge * gram.diagonal(dim1=1, dim2=2) + torch.finfo(torch.float64).tiny)
+    return torch.linalg.solve(gram + shift, b).squeeze(2), gram
 
 
 class CombinedObjective(nn.Module):

@@ -40,6 +40,9 @@ WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one pro
 # keys that cannot change a run's numbers: a resumed run may differ in them (a name ending in "." frees every key
 # under it: where a run's files go, conf/paths)
 RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths."}
+# keys added to the configs after runs were made, with the value that gives a run without them its own numbers:
+# a saved config lacking one of them agrees with that value
+ADDED = {"objective.target": "residual"}
 
 
 class RunDir:
@@ -256,7 +259,7 @@ def _resume_free(key: str) -> bool:
 
 
 def _value(flat: dict, key: str):
-    """A flattened config's value at ``key``; an empty mapping counts as unset (a run saved before a group such as
-    callbacks existed lacks the key that now holds {})."""
+    """A flattened config's value at ``key``; an empty mapping, or a key of ADDED at its value there, counts as unset
+    (a run saved before a group such as callbacks existed lacks the key that now holds {})."""
     value = flat.get(key, "(unset)")
-    return "(unset)" if value == {} else value
+    return "(unset)" if value == {} or (key in ADDED and value == ADDED[key]) else value
