@@ -4,11 +4,15 @@
 gives them to the run's network exactly as training did (float32, shaped (batch, 2, data.window), channel 0
 seat, channel 1 body; eval mode, no gradients) and averages the K estimates. The command
 ``hybrid-sysid-predict`` (hybrid_sysid.cli.predict) only reads files and prints; it calls this same code.
+A least-squares baseline run (``baseline=ls_*``) estimates with its fit instead of a network. Each row carries
+flags (hybrid_sysid.inference.flags) that say when not to trust it, with one warning per kind.
 """
 
 from __future__ import annotations
 
+import json
 import math
+import warnings
 from fractions import Fraction
 from pathlib import Path
 from typing import Sequence
@@ -19,11 +23,15 @@ import torch
 from omegaconf import DictConfig, OmegaConf
 from scipy.signal import resample_poly
 
+from hybrid_sysid.baselines.least_squares import LeastSquaresFit, fit_p
 from hybrid_sysid.config.validation import available_memory
 from hybrid_sysid.core.checks import ConfigError
-from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.data.spec import check_filter_fits
+from hybrid_sysid.inference import flags as F
+from hybrid_sysid.physics import DEFAULT_MEASUREMENT, QuarterCar, relative_states
+from hybrid_sysid.runs.records import RECORD
 from hybrid_sysid.runs.rundir import CHECKPOINTS, CONFIG, RunDir
-from hybrid_sysid.training.build import build_model
+from hybrid_sysid.training.build import build_baseline, build_model
 
 DT_RTOL = 1e-9  # a recording's dt counts as the run's data.dt within this relative difference
 # The resampling ratio is a fraction with a denominator up to MAX_DENOMINATOR; the rate it gives may miss the
@@ -33,19 +41,25 @@ MAX_DENOMINATOR = 1000
 RATIO_RTOL = 1e-4
 CHUNK = 4096  # windows per forward pass, so long recordings need bounded memory
 FLOAT32_MAX = float(np.finfo(np.float32).max)  # the network reads float32: larger magnitudes become inf
-COLUMNS = ["recording", "steps", "windows", "p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
+COLUMNS = ["recording", "steps", "windows", "p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2", "flag"]
 
 
 class InputError(ValueError):
     """Input the estimator cannot use; the message names the item, the value and what is allowed."""
 
 
+class EstimateWarning(UserWarning):
+    """An estimate not to trust (a flag of docs/predict.md); the message says which recordings and why."""
+
+
 def load_estimator(run_dir: str | Path, checkpoint: str | Path | None = None) -> "Estimator":
     """The trained network of a run directory written by ``hybrid-sysid``.
 
     ``checkpoint``: None takes checkpoints/best.ckpt (what the run's metrics were computed with) or, when the
-    run never validated, last.ckpt; "best", "last" or a path pick one. A baseline run (no network) or a
-    directory without a config or checkpoint raises InputError (a ValueError) in one line.
+    run never validated, last.ckpt; "best", "last" or a path pick one. A directory without a config or
+    checkpoint raises InputError (a ValueError) in one line. A baseline run (``baseline=ls_*``: no network)
+    estimates with its least-squares fit, built from its config by the package's allow-listed builder
+    (``checkpoint`` is then ignored). The run's metrics.json gives its own test error (the flag run_error).
     """
     run = RunDir(run_dir)
     if not run.config_file.is_file():
@@ -54,13 +68,39 @@ def load_estimator(run_dir: str | Path, checkpoint: str | Path | None = None) ->
         cfg = OmegaConf.load(run.config_file)
     except Exception as exc:  # noqa: BLE001 - yaml's own errors are many classes; the message says which
         raise InputError(f"run = {run.path}: cannot read {CONFIG} ({type(exc).__name__}: {exc})") from None
-    baseline = OmegaConf.select(cfg, "baseline", default=None)
-    if baseline is not None:
+    record = _record(run)
+    if OmegaConf.select(cfg, "baseline", default=None) is not None:
+        net, baseline = None, _baseline(cfg, run)
+    else:
+        net, baseline = _network(cfg, _checkpoint_path(run, checkpoint), run), None
+    try:
+        return Estimator(net, cfg, baseline=baseline, record=record)
+    except Exception as exc:  # noqa: BLE001 - the data section, read for the trained range, lacks or mistypes keys
         raise InputError(
-            f"run = {run.path} is a baseline (baseline._target_ = {baseline.get('_target_')}) without a "
-            "trained network; allowed: a run of a network model (fast_cnn, paper_cnn)"
-        )
-    return Estimator(_network(cfg, _checkpoint_path(run, checkpoint), run), cfg)
+            f"run = {run.path}: its {CONFIG} is damaged ({type(exc).__name__}: {' '.join(str(exc).split())})"
+        ) from None
+
+
+def _record(run: RunDir) -> dict | None:
+    """The run's metrics.json, None when it is missing or unreadable (its test error is then unknown)."""
+    try:
+        record = json.loads((run.path / RECORD).read_text())
+    except (OSError, ValueError):
+        return None
+    return record if isinstance(record, dict) else None
+
+
+def _baseline(cfg: DictConfig, run: RunDir) -> LeastSquaresFit:
+    """The run's least-squares fit, built as the run built it (build_baseline: a _target_ outside the package's
+    allow-list is refused before anything is imported)."""
+    try:
+        return build_baseline(cfg)
+    except ConfigError as exc:
+        raise InputError(f"run = {run.path}: {exc}") from None
+    except Exception as exc:  # noqa: BLE001 - a config that parses but lacks or mistypes keys
+        raise InputError(
+            f"run = {run.path}: its {CONFIG} is damaged ({type(exc).__name__}: {' '.join(str(exc).split())})"
+        ) from None
 
 
 def _checkpoint_path(run: RunDir, checkpoint) -> Path:
@@ -103,14 +143,39 @@ def _network(cfg: DictConfig, path: Path, run: RunDir) -> torch.nn.Module:
 
 
 class Estimator:
-    """A run's network and what it needs to read a recording: the run's dt, window and car."""
+    """A run's network (or least-squares baseline) and what it needs to read a recording: the run's dt, window,
+    car and measurement, its trained range and its own test error (``record``, its metrics.json)."""
 
-    def __init__(self, net: torch.nn.Module, config: DictConfig):
+    def __init__(
+        self,
+        net: torch.nn.Module | None,
+        config: DictConfig,
+        baseline: LeastSquaresFit | None = None,
+        record: dict | None = None,
+    ):
+        if (net is None) == (baseline is None):
+            raise ValueError("an Estimator takes a network or a baseline, one of them")
         self.net = net
+        self.baseline = baseline
         self.config = config
+        self.record = record
         self.dt = float(config.data.dt)
         self.window = int(config.data.window)
         self.car = QuarterCar(**config.get("car", {}))
+        self.measurement = str(config.data.get("measurement", DEFAULT_MEASUREMENT))
+        self.trained = F.trained_range(config, net)
+        self._reference: F.ChannelReference | None = None
+
+    @property
+    def reference(self) -> F.ChannelReference:
+        """The channel features of recordings simulated from the run's data spec (computed once, on first use)."""
+        if self._reference is None:
+            band = F.resonance_band(self.trained.p_min[1], self.trained.p_max[1])
+            try:
+                self._reference = F.ChannelReference(self.config, self.window, band)
+            except ConfigError as exc:  # a data spec the simulator refuses (a damaged or hand-edited config)
+                raise InputError(f"the run's data spec cannot be simulated for the channel check: {exc}") from None
+        return self._reference
 
     def predict(
         self, seat_acc, body_acc, dt: float, windows: int = 8, resample: bool = False, names: Sequence | None = None
@@ -123,6 +188,9 @@ class Estimator:
         data.dt unless ``resample`` (then scipy's polyphase filter brings them to the run's rate). The K window
         starts are evenly spaced over each recording, first at 0, last at the end. ``names`` label the
         recordings (default 0, 1, ...). Bad input raises InputError (a ValueError).
+
+        The column ``flag`` says why not to trust a row (range, channels, run_error; empty when none); each kind
+        also raises one EstimateWarning and is listed in ``table.attrs["warnings"]`` (docs/predict.md, "Flags").
         """
         if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or windows < 1:
             raise InputError(f"windows = {windows!r} is not allowed: an integer >= 1")
@@ -143,16 +211,19 @@ class Estimator:
             stacked.append(signals)
         steps = [s.shape[1] for s in stacked]
         self._check_memory(k, names, steps)
-        estimates = self._estimate(np.concatenate([self._windows(s, k) for s in stacked]))
-        estimates = estimates.reshape(len(recordings), k, 2)
-        _check_estimates(estimates, names, stacked)
-        p = estimates.mean(axis=1)
-        spread = estimates.std(axis=1)  # of the K window estimates; 0 for K = 1
-        return pd.DataFrame(
+        cut = np.stack([self._windows(s, k) for s in stacked])  # (recordings, K, 2, window)
+        if self.baseline is None:
+            estimates = self._estimate(cut.reshape(-1, 2, self.window)).reshape(len(recordings), k, 2)
+            _check_estimates(estimates, names, stacked)
+        else:
+            estimates = [self._fit(s, k, name) for name, s in zip(names, stacked)]
+        p = np.stack([e.mean(axis=0) for e in estimates])
+        spread = np.stack([e.std(axis=0) for e in estimates])  # of the K window estimates; 0 for K = 1
+        table = pd.DataFrame(
             {
                 "recording": names,
                 "steps": steps,
-                "windows": int(windows),
+                "windows": [len(e) for e in estimates],
                 "p1": p[:, 0],
                 "p1_std": spread[:, 0],
                 "p2": p[:, 1],
@@ -160,8 +231,60 @@ class Estimator:
                 "m3_from_p1": self.car.c3 / p[:, 0],
                 "m3_from_p2": self.car.k3 / p[:, 1],
             },
-            columns=COLUMNS,
+            columns=COLUMNS[:-1],
         )
+        step = max(1, CHUNK // k)  # recordings at a time: their spectra stay within a chunk's memory
+        band = self.reference.band
+        features = [F.channel_features(cut[i : i + step], self.dt, band) for i in range(0, len(cut), step)]
+        return self._flag(table, p, np.concatenate(features), k)
+
+    def _flag(self, table: pd.DataFrame, p: np.ndarray, features: np.ndarray, k: int) -> pd.DataFrame:
+        """The flag column (codes joined by commas, empty when none), and one EstimateWarning per kind of flag,
+        also in ``table.attrs["warnings"]`` (docs/predict.md, "Flags")."""
+        names, n = list(table.recording), len(table)
+        lines = []
+        outside = self.trained.outside(p)
+        if outside.any():
+            lines.append(F.range_warning(outside, names, self.trained, self.baseline is None))
+        channels = self.reference.outside(features, k)
+        if channels.any():
+            lines.append(F.channels_warning(channels, names, self.reference))
+        error, k_rows, values = F.run_error(self.record, k)
+        large = error is None or error > F.RUN_ERROR_LIMIT
+        if large:
+            lines.append(F.run_error_warning(error, k_rows, values, n))
+        table["flag"] = [
+            ",".join(code for code, on in ((F.RANGE, o), (F.CHANNELS, c), (F.RUN_ERROR, large)) if on)
+            for o, c in zip(outside, channels)
+        ]
+        table.attrs["warnings"] = lines
+        for line in lines:
+            warnings.warn(line, EstimateWarning, stacklevel=3)
+        return table
+
+    def _fit(self, signals: np.ndarray, k: int, name) -> np.ndarray:
+        """A baseline's estimates of one recording (2, n) at the run's dt, float64 (K, 2): per window (span
+        "window": the K windows the network would see, their regressors integrated over the whole recording
+        from t0 and cropped, as the run's data module cuts them) or one fit of the whole recording (span
+        "series": (1, 2)). The run's data.measurement decides how the accelerations are re-integrated."""
+        fit, (seat, body) = self.baseline, signals
+        rel_vel, rel_disp = relative_states(seat, body, self.dt, self.measurement)
+        if fit.span == "series":
+            try:
+                check_filter_fits(fit.taps if fit.fir is not None else None, len(seat), "baseline.taps", "its steps")
+            except ConfigError as exc:
+                raise InputError(f"recording {name!r} is too short for the run's band-pass: {exc}") from None
+            rows = [seat[None], rel_vel[None], rel_disp[None]]
+        else:
+            rows = list(self._windows(np.stack([seat, rel_vel, rel_disp]), k).transpose(1, 0, 2))
+        estimates = fit_p(*rows, fit.fir, fit.car)
+        if not np.isfinite(estimates).all():
+            raise InputError(
+                f"recording {name!r}: the least-squares fit of the run's baseline is not defined (p1 = "
+                f"{np.nanmean(estimates[:, 0]):g}, p2 = {np.nanmean(estimates[:, 1]):g}): its regressors vanish or "
+                "are dependent (a constant or zero recording?); allowed: accelerations of a car on a road"
+            )
+        return estimates
 
     def _check_dt(self, dt, resample: bool) -> float:
         given = dt
@@ -216,7 +339,7 @@ class Estimator:
         )
 
     def _windows(self, signals: np.ndarray, k: int) -> np.ndarray:
-        """(K, 2, window) windows at starts 0, ..., n - window, evenly spaced (integer division: distinct
+        """(K, channels, window) windows at starts 0, ..., n - window, evenly spaced (integer division: distinct
         whenever K <= n - window + 1, which _check_windows ensures)."""
         n, w = signals.shape[1], self.window
         starts = np.arange(k) * (n - w) // max(k - 1, 1)

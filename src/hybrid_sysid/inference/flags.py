@@ -1,0 +1,210 @@
+"""When not to trust an estimate: the flags ``Estimator.predict`` adds to its table (docs/predict.md, "Flags").
+
+range     an estimate more than RANGE_RTOL outside the range of p the run was trained on (its data spec: (C3, K3)
+          (1 -/+ s) / [m3_max, m3_min]), or within BOUND_RTOL of the network's output bound, where the network
+          saturates: a seat mass outside the trained range comes out near the range's edge, not where it is. A
+          least-squares baseline has no bound; outside the range it was never tested.
+channels  the recording's channel powers unlike those of recordings simulated from the run's own data spec: the
+          seat-to-body power ratio around the seat resonance (the seat amplifies the body's motion there, so
+          swapped channels invert it) beyond their range by more than a factor RATIO_FACTOR in power, or the
+          body acceleration's power (a common scale: other units) by more than LEVEL_FACTOR.
+run_error the run's own clean test error (metrics.json) above RUN_ERROR_LIMIT, or unknown.
+
+Plain numpy on the run's config and record; the reference recordings come from the package's own data code.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+from omegaconf import DictConfig
+
+from hybrid_sysid.config.resolvers import p_prior
+from hybrid_sysid.data.dataset import generate_dataset
+from hybrid_sysid.data.spec import DatasetSpec
+
+RANGE, CHANNELS, RUN_ERROR = "range", "channels", "run_error"
+BOUND_RTOL = 0.02  # an estimate within 2% of a network's output bound counts as saturated
+RANGE_RTOL = 0.02  # one more than 2% beyond the trained range is outside it (an exact fit at the edge is not)
+RUN_ERROR_LIMIT = 0.10  # clean test mean relative deviation (either parameter) above which every estimate is flagged
+# how far (a factor in power) a recording's seat-to-body power ratio and body power may lie beyond the range of the
+# simulated reference recordings: the ratio is a property of the car (road class and realisation change it little),
+# the power spans the road classes and varies from road to road
+RATIO_FACTOR, LEVEL_FACTOR = 2.0, 10.0
+# the reference: per road class of the run, REF_ROADS roads x REF_MASSES masses, at every noise level the run
+# trained or was tested on
+REF_ROADS, REF_MASSES = 8, 8
+# windows averaged per reference recording at most: a recording's mean over more windows varies less, so a range
+# over fewer is wider (never flags more) and bounds the reference's memory
+REF_K_MAX = 16
+SHOW = 5  # recording names a warning lists
+
+
+@dataclass(frozen=True)
+class TrainedRange:
+    """The range of p = (p1, p2) the run's data span, and the network's output bounds (None: unbounded)."""
+
+    p_min: np.ndarray
+    p_max: np.ndarray
+    m3: tuple[float, float]  # data.m3_min, data.m3_max
+    bound_lo: np.ndarray | None = None
+    bound_hi: np.ndarray | None = None
+
+    def outside(self, p: np.ndarray) -> np.ndarray:
+        """(n,) bool: any of p1, p2 (rows of p, (n, 2)) beyond the trained range or at the output bound."""
+        out = (p < self.p_min * (1 - RANGE_RTOL)).any(axis=1) | (p > self.p_max * (1 + RANGE_RTOL)).any(axis=1)
+        if self.bound_lo is not None:
+            out |= (p <= self.bound_lo * (1 + BOUND_RTOL)).any(axis=1)
+        if self.bound_hi is not None:
+            out |= (p >= self.bound_hi * (1 - BOUND_RTOL)).any(axis=1)
+        return out
+
+    def describe(self) -> str:
+        return (
+            f"p1 {self.p_min[0]:.4g} to {self.p_max[0]:.4g} 1/s, p2 {self.p_min[1]:.4g} to {self.p_max[1]:.4g} "
+            f"1/s^2 (data.m3_min to m3_max = {self.m3[0]:g} to {self.m3[1]:g} kg)"
+        )
+
+
+def trained_range(cfg: DictConfig, net=None) -> TrainedRange:
+    """The run's p range (the prior its config derives from the car, the masses and the seat spread:
+    ``${p_prior:...}``) and, for a network with a bounded head (FastCNN: buffers log_lo, log_span, loaded with
+    its weights), that head's bounds."""
+    lo, hi = (np.array(p_prior(which, _root_=cfg)) for which in ("min", "max"))
+    bound_lo = bound_hi = None
+    buffers = dict(net.named_buffers()) if net is not None else {}
+    if "log_lo" in buffers and "log_span" in buffers:
+        log_lo = buffers["log_lo"].double().numpy()
+        bound_lo, bound_hi = np.exp(log_lo), np.exp(log_lo + buffers["log_span"].double().numpy())
+    return TrainedRange(lo, hi, (float(cfg.data.m3_min), float(cfg.data.m3_max)), bound_lo, bound_hi)
+
+
+def resonance_band(p2_min: float, p2_max: float) -> tuple[float, float]:
+    """The seat's natural frequencies sqrt(p2) / (2 pi) over the trained p2 range, in Hz."""
+    return math.sqrt(p2_min) / (2 * math.pi), math.sqrt(p2_max) / (2 * math.pi)
+
+
+def channel_features(windows: np.ndarray, dt: float, band: tuple[float, float]) -> np.ndarray:
+    """(recordings, K, 2, w) windows -> (recordings, 2) features, both log10 of a power: the seat-to-body power
+    ratio in ``band`` and the body acceleration's mean square, each averaged over the K windows first (Hann
+    window, periodogram). Non-finite where a channel has no power."""
+    w = windows.shape[-1]
+    freqs = np.fft.rfftfreq(w, dt)
+    in_band = (freqs >= band[0]) & (freqs <= band[1])
+    if in_band.sum() < 2:  # short windows: the bins nearest the band
+        step = freqs[1] - freqs[0]
+        in_band = (freqs >= band[0] - step) & (freqs <= band[1] + step)
+    spectra = np.abs(np.fft.rfft(windows * np.hanning(w), axis=-1)) ** 2
+    power = spectra[..., in_band].sum(axis=-1).mean(axis=1)  # (recordings, 2)
+    level = (windows[:, :, 1] ** 2).mean(axis=-1).mean(axis=1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.stack([np.log10(power[:, 0] / power[:, 1]), np.log10(level)], axis=1)
+
+
+class ChannelReference:
+    """Recordings simulated as the run's training data were (its DatasetSpec: car, speed, amplitude, mass range,
+    seat spread, measurement, dt), REF_ROADS roads x REF_MASSES masses for each of its road classes, with
+    Gaussian noise at each level the run trained or was tested on (noise.train_std, noise.eval_std). A
+    recording's features are compared with the range of theirs over the same K windows (``bounds``)."""
+
+    def __init__(self, cfg: DictConfig, window: int, band: tuple[float, float]):
+        spec = DatasetSpec.from_config(cfg)
+        seat, body = [], []
+        for c in spec.road_classes:  # every class of the run, evenly (a random draw of roads could miss one)
+            ds = generate_dataset(replace(spec, road_classes=(c,), n_roads=REF_ROADS, n_masses=REF_MASSES))
+            seat.append(ds.seat_acc.astype(np.float64))
+            body.append(ds.body_acc.astype(np.float64))
+        self.signals = np.stack([np.concatenate(seat), np.concatenate(body)], axis=1)  # (n, 2, steps)
+        noise = cfg.get("noise", {})
+        self.levels = sorted({0.0, float(noise.get("train_std", 0.0)), *(float(s) for s in noise.get("eval_std", []))})
+        self.seed, self.dt, self.window, self.band = spec.seed, spec.dt, window, band
+        self._bounds: dict[int, tuple[np.ndarray, np.ndarray]] = {}
+
+    def bounds(self, k: int) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi) of the features of the reference recordings over K evenly spaced windows (at most REF_K_MAX
+        and as many as they offer), widened by RATIO_FACTOR and LEVEL_FACTOR."""
+        n, w = self.signals.shape[-1], self.window
+        k = min(k, REF_K_MAX, n - w + 1)
+        if k not in self._bounds:
+            starts = np.arange(k) * (n - w) // max(k - 1, 1)
+            windows = np.stack([self.signals[:, :, s : s + w] for s in starts], axis=1)  # (n, K, 2, w)
+            rng = np.random.default_rng([self.seed, 27, k])
+            features = np.concatenate(
+                [
+                    channel_features(windows + std * rng.standard_normal(windows.shape), self.dt, self.band)
+                    for std in self.levels
+                ]
+            )
+            pad = np.log10([RATIO_FACTOR, LEVEL_FACTOR])
+            self._bounds[k] = (np.nanmin(features, axis=0) - pad, np.nanmax(features, axis=0) + pad)
+        return self._bounds[k]
+
+    def outside(self, features: np.ndarray, k: int) -> np.ndarray:
+        """(n,) bool: a feature of the recording (over K windows) beyond the widened range, or not finite."""
+        lo, hi = self.bounds(k)
+        return ~(np.isfinite(features).all(axis=1) & ((features >= lo) & (features <= hi)).all(axis=1))
+
+
+def run_error(record: dict | None, windows: int) -> tuple[float | None, int | None, dict]:
+    """The run's clean test error from its record: (the larger mean relative deviation of p1 and p2, the K of
+    those rows, {parameter: value}); K is the largest the record holds up to ``windows``, else its smallest.
+    (None, None, {}) when the record has no clean test rows."""
+    rows = []
+    for r in (record or {}).get("results", []) if isinstance(record, dict) else []:
+        try:
+            if r["split"] == "test" and float(r["noise_std"]) == 0 and r["parameter"] in ("p1", "p2"):
+                rows.append((int(r["windows"]), r["parameter"], float(r["mean_rel_dev"])))
+        except (KeyError, TypeError, ValueError):
+            continue
+    rows = [r for r in rows if math.isfinite(r[2])]
+    if not rows:
+        return None, None, {}
+    ks = sorted({k for k, _, _ in rows})
+    k = max([x for x in ks if x <= windows], default=ks[0])
+    values = {p: v for kk, p, v in rows if kk == k}
+    return max(values.values()), k, values
+
+
+def names_of(names: list, mask: np.ndarray) -> str:
+    flagged = [str(n) for n, m in zip(names, mask) if m]
+    shown = ", ".join(flagged[:SHOW])
+    return shown + (f", ... ({len(flagged) - SHOW} more)" if len(flagged) > SHOW else "")
+
+
+def range_warning(mask: np.ndarray, names: list, trained: TrainedRange, network: bool = True) -> str:
+    why = (
+        "or at the network's output bound, where it saturates: the true value may lie further out"
+        if network
+        else "where the run was never tested (a least-squares fit does not saturate, but a negative or far-off "
+        "value means the seat equation does not fit the recording)"
+    )
+    return (
+        f"{int(mask.sum())} of {len(mask)} recordings ({names_of(names, mask)}) have an estimate more than "
+        f"{RANGE_RTOL:.0%} outside the trained range ({trained.describe()}) {why} (flag {RANGE})"
+    )
+
+
+def channels_warning(mask: np.ndarray, names: list, reference: ChannelReference) -> str:
+    lo, hi = reference.band
+    return (
+        f"{int(mask.sum())} of {len(mask)} recordings ({names_of(names, mask)}) have channel powers unlike the "
+        f"run's training recordings (the seat-to-body power ratio at the seat resonance, {lo:.3g} to {hi:.3g} Hz, "
+        f"more than {RATIO_FACTOR:g}x, or the body acceleration's power more than {LEVEL_FACTOR:g}x beyond the "
+        f"range of recordings simulated from the run's data spec): seat_acc and body_acc swapped, or a channel "
+        f"not in m/s^2? (flag {CHANNELS})"
+    )
+
+
+def run_error_warning(error: float | None, k: int | None, values: dict, n: int) -> str:
+    if error is None:
+        return (
+            f"the run's own test error is unknown (no readable metrics.json with clean test results): its "
+            f"estimates are unchecked (flag {RUN_ERROR} on all {n} recordings)"
+        )
+    each = ", ".join(f"{p} {v:.1%}" for p, v in sorted(values.items()))
+    return (
+        f"the run's own clean test error is {error:.1%} mean relative deviation (K = {k}: {each}), above "
+        f"{RUN_ERROR_LIMIT:.0%}: expect errors of that size on every recording (flag {RUN_ERROR} on all {n})"
+    )
