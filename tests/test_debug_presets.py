@@ -76,7 +76,8 @@ def test_overfit_and_profiler_are_fast_plus_their_own_settings():
 def _trainer_callbacks(tmp_path, *overrides):
     from hybrid_sysid.training.build import build_callbacks, build_objective, build_trainer, monitor_of
 
-    cfg = composed(f"data.cache_dir={tmp_path}", *overrides)
+    # progress_bar=true: the bars a terminal gets (the default, auto, shows none when stdout is not one)
+    cfg = composed(f"data.cache_dir={tmp_path}", "trainer.progress_bar=true", *overrides)
     validate(cfg)
     monitor = monitor_of(cfg, build_objective(cfg))
     trainer = build_trainer(cfg, tmp_path, build_callbacks(cfg, monitor))

@@ -45,6 +45,7 @@ def predict(capsys, *argv):
 
 @pytest.mark.integration
 def test_csv_through_the_command_gives_the_api_numbers(tiny_run, est, tmp_path):
+    # a real process: the command as installed (python -m), its files read back against the API in this one
     seat, body, _ = recordings(3, 320, est.dt)
     names = ["front", "rear", "spare"]
     csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt, names)
@@ -241,11 +242,6 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
     np.savez(tmp_path / "no_dt.npz", seat_acc=seat, body_acc=body)
     np.savez(tmp_path / "two_dt.npz", seat_acc=seat, body_acc=body, dt=[0.005, 0.005])
     (tmp_path / "text.npz").write_text("seat_acc,body_acc\n1,2\n")
-    (tmp_path / "baseline" / ".hydra").mkdir(parents=True)
-    cfg = (tiny_run / ".hydra" / "config.yaml").read_text()
-    (tmp_path / "baseline" / ".hydra" / "config.yaml").write_text(
-        cfg.replace("baseline: null", "baseline:\n  _target_: hybrid_sysid.baselines.LeastSquaresFit")
-    )
     (tmp_path / "untrained" / ".hydra").mkdir(parents=True)
     shutil.copy(tiny_run / ".hydra" / "config.yaml", tmp_path / "untrained" / ".hydra")
     run, inp = f"run={tiny_run}", f"input={csv}"
@@ -290,11 +286,6 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
             (f"run={tmp_path / 'untrained'}", inp),
             r"run = .*untrained has no checkpoint .*best.ckpt or "
             r".*last.ckpt; allowed: a run that trained a network",
-        ),
-        (
-            (f"run={tmp_path / 'baseline'}", inp),
-            r"is a baseline \(baseline._target_ = "
-            r"hybrid_sysid.baselines.LeastSquaresFit\) without a trained",
         ),
     ]
     for argv, message in cases:

@@ -187,7 +187,7 @@ def test_each_file_a_run_writes_truncated_then_the_next_command_recovers(finishe
     if name != "checkpoints/last.ckpt" and "ckpt" in name:  # the best weights are lost: trained again
         assert "from the beginning" in caplog.text
     assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]
-    assert report([run, "--out", tmp_path / "report"]) == 0
+    assert report([run, f"out={tmp_path / 'report'}"]) == 0
 
 
 def test_checkpoints_name_their_files_relative_to_the_run(finished, tmp_path):

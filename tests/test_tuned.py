@@ -147,9 +147,9 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
     assert (sweep / "figures" / "tuning.png").stat().st_size > 0
     from hybrid_sysid.cli.report import main as report
 
-    assert report([sweep, "--out", tmp_path / "all"]) == 0  # without --exclude the trials are rows too
+    assert report([sweep, f"out={tmp_path / 'all'}"]) == 0  # without exclude= the trials are rows too
     assert pd.read_csv(tmp_path / "all" / "summary.csv").run.nunique() == 3
-    assert report([sweep, "--out", tmp_path / "some", "--exclude", "*/search/*"]) == 0
+    assert report([sweep, f"out={tmp_path / 'some'}", "exclude=*/search/*"]) == 0
     assert pd.read_csv(tmp_path / "some" / "summary.csv").run.nunique() == 2
 
 

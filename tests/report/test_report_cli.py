@@ -22,7 +22,7 @@ def assert_real_png(path):
 
 
 def test_report_on_sweep_with_failures_writes_everything_and_returns_1(sweep, capsys):
-    assert main([str(sweep)]) == 1  # default --out: the single PATH
+    assert main([str(sweep)]) == 1  # default out=: the single PATH
     out = capsys.readouterr().out
     for name in ("summary.csv", "summary.md"):
         assert (sweep / name).is_file()
@@ -37,7 +37,7 @@ def test_report_merges_sweeps_into_report_dir_and_returns_0(tmp_path, monkeypatc
     a = make_sweep(tmp_path / "a", failed=False)
     b = make_sweep(tmp_path / "b", failed=False, extra=("road=C",))
     monkeypatch.chdir(tmp_path)
-    assert main([str(a), str(b), "--metric", "std_rel_dev"]) == 0
+    assert main([str(a), str(b), "metric=std_rel_dev"]) == 0
     df = pd.read_csv(tmp_path / "report" / "summary.csv", keep_default_na=False)
     assert sorted(df.run.unique()) == sorted(f"{s}/{j}" for s in "ab" for j in range(4))  # no name clash
     rows = parse_markdown(capsys.readouterr().out)
@@ -52,7 +52,7 @@ def test_report_merges_sweeps_into_report_dir_and_returns_0(tmp_path, monkeypatc
 
 def test_report_on_a_single_run_and_out_option(tmp_path, capsys):
     run = make_run(tmp_path / "runs" / "2026-01-01_12-00-00", ["seed=0"], 0)
-    assert main([str(run), "--out", str(tmp_path / "out"), "--split", "val"]) == 0
+    assert main([str(run), f"out={tmp_path / 'out'}", "split=val"]) == 0
     [row] = parse_markdown(capsys.readouterr().out)
     assert row["all"] == "all" and list(row)[1] == "noise 0 p1 [%]"  # val is evaluated at noise 0 only
     assert pd.read_csv(tmp_path / "out" / "summary.csv").run.unique().tolist() == [run.name]
@@ -63,35 +63,60 @@ def test_report_returns_2_with_one_line_for_a_path_without_runs(tmp_path, sweep,
     bad = tmp_path / "nope"
     if case == "empty":
         bad.mkdir()
-    assert main([str(sweep), str(bad), "--out", str(tmp_path / "out")]) == 2
+    assert main([str(sweep), str(bad), f"out={tmp_path / 'out'}"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and str(bad) in err and "error" in err
     assert not (tmp_path / "out").exists()
 
 
-def test_latex_and_compare_flags(tmp_path, capsys):
+def test_latex_and_compare_options(tmp_path, capsys):
     a = make_sweep(tmp_path / "a", failed=False)
-    assert main([str(a), "--latex"]) == 0
+    assert main([str(a), "latex=true"]) == 0
     tex = (a / "summary.tex").read_text()
     assert r"\begin{tabular}" in tex and r"\mathbf{" in tex and "hybrid &" in tex and "labelled &" in tex
     assert "summary.tex" in capsys.readouterr().err
-    assert main([str(a), "--compare", "objective"]) == 0
+    assert main([str(a), "compare=objective"]) == 0
     assert "`objective`" in capsys.readouterr().out
-    assert main([str(a), "--compare", "road", "--out", str(tmp_path / "o")]) == 2
+    assert main([str(a), "compare=road", f"out={tmp_path / 'o'}"]) == 2
     err = capsys.readouterr().err
     assert err.count("\n") == 1 and "compare='road'" in err and not (tmp_path / "o").exists()
 
 
-def test_an_unknown_split_is_refused_with_status_2(sweep, tmp_path, capsys):
-    with pytest.raises(SystemExit) as exit_:
-        main([str(sweep), "--split", "nonsense", "--out", str(tmp_path / "out")])
-    assert exit_.value.code == 2 and "invalid choice: 'nonsense'" in capsys.readouterr().err
+@pytest.mark.parametrize(
+    "arg, message",
+    [
+        ("split=nonsense", "split = 'nonsense' is not allowed: one of train, val, test"),
+        ("spilt=val", "unknown key 'spilt' in 'spilt=val'; allowed keys: split, metric"),
+        ("latex=maybe", "latex = 'maybe' is not allowed: true or false"),
+        ("--nonsense", "unknown option '--nonsense'; options are key=value"),
+    ],
+)
+def test_a_bad_argument_is_one_line_and_status_2(sweep, tmp_path, capsys, arg, message):
+    assert main([str(sweep), arg, f"out={tmp_path / 'out'}"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and message in err and err.startswith("hybrid-sysid-report: error: ")
     assert not (tmp_path / "out").exists()
+
+
+def test_the_former_flags_are_aliases_of_the_key_value_options(tmp_path, capsys):
+    a = make_sweep(tmp_path / "a", failed=False)
+    flags = main([str(a), "--split", "val", "--latex", f"--out={tmp_path / 'flags'}", "--exclude", "nothing*"])
+    assert flags == 0
+    assert main([str(a), "split=val", "latex=true", f"out={tmp_path / 'keys'}", "exclude=[nothing*]"]) == 0
+    for name in ("summary.md", "summary.tex"):
+        assert (tmp_path / "flags" / name).read_text() == (tmp_path / "keys" / name).read_text()
+
+
+def test_help_says_what_the_command_does(capsys):
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("hybrid-sysid-report: rebuild the comparison table") and "split=test" in out
+    assert "examples:" in out
 
 
 def test_an_out_that_cannot_be_written_is_one_line_and_status_2(sweep, tmp_path, capsys):
     blocker = tmp_path / "a_file"
     blocker.write_text("")
-    assert main([str(sweep), "--out", str(blocker / "report")]) == 2
+    assert main([str(sweep), f"out={blocker / 'report'}"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "cannot write the report: NotADirectoryError" in err[0]

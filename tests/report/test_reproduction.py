@@ -140,7 +140,7 @@ def test_failed_jobs_only_still_give_a_page(tmp_path):
 
 def test_cli_reproduction_flag_writes_and_prints(tmp_path, capsys):
     sweep = _make(tmp_path / "sw")
-    assert main([str(sweep), "--reproduction"]) == 0
+    assert main([str(sweep), "reproduction=true"]) == 0
     out = capsys.readouterr().out
     assert (sweep / "reproduction.md").read_text() in out and (sweep / "summary.md").is_file()
 
@@ -149,12 +149,12 @@ def test_cli_results_page_one_section_per_sweep_with_figures(tmp_path, capsys):
     paper = _make(tmp_path / "paper_sweep")
     robust = make_sweep(tmp_path / "robust", extra=("experiment=robustness",))  # with a failed and a corrupt job
     page = tmp_path / "docs" / "results.md"
-    assert main([str(robust), str(paper), "--results", str(page)]) == 1  # a job failed
+    assert main([str(robust), str(paper), f"results={page}"]) == 1  # a job failed
     text = page.read_text()
     assert capsys.readouterr().out == text
-    assert not (robust / "summary.csv").exists() and not (paper / "summary.csv").exists()  # no --out
+    assert not (robust / "summary.csv").exists() and not (paper / "summary.csv").exists()  # no out=
     assert text.index("## experiment=robustness") < text.index("## experiment=paper")
-    assert f"--results {page}" in text and "hybrid-sysid-report" in text
+    assert f"results={page}" in text and "hybrid-sysid-report" in text  # the command that regenerates it
     for name in ("robustness", "paper"):
         assert f"](figures/{name}.png)" in text
         assert (page.parent / "figures" / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
@@ -165,8 +165,8 @@ def test_cli_results_page_one_section_per_sweep_with_figures(tmp_path, capsys):
     mean = np.mean([_value("labelled", "test", 0.0, "p1", s) for s in SEEDS])
     assert plain(rows[1]["noise 0 p1 [%]"]).startswith(f"{100 * mean:.2f} ± ")
     assert "steps 2000" in section and "The paper's figures beside ours" not in text
-    # --reproduction adds the comparison per section; --out also writes the summary
-    assert main([str(paper), "--results", str(page), "--reproduction", "--out", str(tmp_path / "o")]) == 0
+    # reproduction=true adds the comparison per section; out= also writes the summary
+    assert main([str(paper), f"results={page}", "reproduction=true", f"out={tmp_path / 'o'}"]) == 0
     text = page.read_text()
     assert "### The paper's figures beside ours" in text and "26-28" in text
     assert (tmp_path / "o" / "summary.md").is_file() and (tmp_path / "o" / "reproduction.md").is_file()
@@ -177,15 +177,15 @@ def test_cli_results_page_places_the_notes_after_the_header(tmp_path, capsys):
     notes = tmp_path / "reading.md"
     notes.write_text("## Reading\n\nHybrid is not more robust here.\n")
     page = tmp_path / "docs" / "results.md"
-    assert main([str(paper), "--results", str(page), "--notes", str(notes)]) == 0
+    assert main([str(paper), f"results={page}", f"notes={notes}"]) == 0
     text = page.read_text()
     assert text.index("Generated from the run records") < text.index("## Reading") < text.index("## experiment=paper")
-    assert f"--notes {notes}" in text  # the regeneration command keeps the notes
+    assert f"notes={notes}" in text  # the regeneration command keeps the notes
     missing = tmp_path / "none.md"
     page.unlink()
     capsys.readouterr()
-    assert main([str(paper), "--results", str(page), "--notes", str(missing)]) == 2
-    assert f"--notes file does not exist: {missing}" in capsys.readouterr().err
+    assert main([str(paper), f"results={page}", f"notes={missing}"]) == 2
+    assert f"notes = {missing}: the file does not exist" in capsys.readouterr().err
     assert not page.exists()  # nothing written
 
 

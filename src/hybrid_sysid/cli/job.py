@@ -27,9 +27,11 @@ from typing import Any, Callable
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
+from hybrid_sysid.cli.console import job_running, quiet_libraries
 from hybrid_sysid.cli.orphans import exit_with_parent
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.install import install_command
 from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.runs.records import CompletedRecordError
 from hybrid_sysid.runs.rundir import RunDir, hold_for_writing
@@ -141,7 +143,8 @@ def run_job(
             log.error("job not run: %s", exc)
             return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
     try:
-        with interruptible():
+        with interruptible(), job_running():
+            quiet_libraries()  # Lightning's messages once, through the job's logging (hybrid_sysid.cli.console)
             try:
                 return work()
             except SystemExit:  # e.g. Lightning's SIGTERMException, raised at its own safe points
@@ -267,24 +270,27 @@ def make_dir(path: Path, key: str) -> None:
         fail(f"{key} = {path} cannot be created: {type(exc).__name__}: {exc}")
 
 
-# an option that needs an optional package -> (the module it needs, the install that brings it)
+# an option that needs an optional package -> (the module it needs, the extra that brings it)
 EXTRAS = {
-    "hparams_search=": ("optuna", 'pip install -e ".[search]"'),
-    "hydra/sweeper=study": ("optuna", 'pip install -e ".[search]"'),
-    "experiment=tuned": ("optuna", 'pip install -e ".[search]"'),
-    "callbacks=rich_progress_bar": ("rich", 'pip install -e ".[rich]"'),
-    "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
-    "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", 'pip install -e ".[slurm]"'),
+    "hparams_search=": ("optuna", "search"),
+    "hydra/sweeper=study": ("optuna", "search"),
+    "experiment=tuned": ("optuna", "search"),
+    "callbacks=rich_progress_bar": ("rich", "rich"),
+    "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", "slurm"),
+    "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", "slurm"),
 }
 
 
 def missing_extra(args) -> str | None:
     """A one-line error for the first command-line option whose optional package is not installed (Hydra
-    itself would fail on it with a long message on the config search path), else None."""
+    itself would fail on it with a long message on the config search path), else None. The install command
+    fits the install: ``pip install -e ".[search]"`` in an editable checkout, ``pip install
+    "hybrid-sysid[search]"`` for a wheel (hybrid_sysid.core.install)."""
     for arg in args:
-        for prefix, (module, install) in EXTRAS.items():
+        for prefix, (module, extra) in EXTRAS.items():
             if arg.lstrip("+~").startswith(prefix) and not installed(module):
-                return f"{arg} needs {module.split('.')[-1].replace('_', '-')}, which is not installed: {install}"
+                name = module.split(".")[-1].replace("_", "-")
+                return f"{arg} needs {name}, which is not installed: {install_command(extra)}"
     return None
 
 

@@ -5,8 +5,9 @@
 The command parses its key=value arguments, reads the file and prints; the estimates come from
 ``hybrid_sysid.inference.estimator``, the code the Python API runs. Bad input prints one line on stderr naming the
 problem and exits with status 2; Ctrl-C prints one line and exits with status 130. output= never replaces the
-input, a file inside a run directory, or (without overwrite=true) any existing file. File formats and output
-columns: docs/predict.md.
+input, a file inside a run directory, or (without overwrite=true) any existing file. Estimates not to trust are
+marked in the column flag, with one warning line per kind on stderr. File formats, output columns and flags:
+docs/predict.md.
 """
 
 from __future__ import annotations
@@ -15,12 +16,13 @@ import math
 import os
 import sys
 import tempfile
+import warnings
 from pathlib import Path
 
 import pandas as pd
 
 from hybrid_sysid.core.files import write_atomic
-from hybrid_sysid.inference.estimator import InputError, load_estimator
+from hybrid_sysid.inference.estimator import EstimateWarning, InputError, load_estimator
 from hybrid_sysid.inference.readers import read_input
 from hybrid_sysid.runs.records import RECORD
 from hybrid_sysid.runs.rundir import CONFIG
@@ -37,6 +39,9 @@ def parse_args(argv: list[str]) -> dict:
     args: dict = {}
     for arg in argv:
         key, sep, value = arg.partition("=")
+        if arg.startswith("-"):  # the style of every command: key=value, as Hydra's overrides
+            hint = arg.lstrip("-") if sep else f"{arg.lstrip('-')}=VALUE"
+            raise InputError(f"argument {arg!r}: options are key=value without dashes ({hint}); see --help")
         if not sep:
             raise InputError(f"argument {arg!r} is not key=value; allowed keys: {', '.join(KEYS)}")
         if key not in KEYS:
@@ -129,19 +134,21 @@ def write_new(path: Path, write) -> None:
 
 
 def run(args: dict) -> pd.DataFrame:
-    """Read, estimate, print the table and write output= when given."""
+    """Read, estimate, print the table, write output= when given, then a warning line per kind of flag on stderr."""
     output = check_output(args)
     recordings = read_input(Path(args["input"]), args.get("dt"))
     estimator = load_estimator(args["run"])
     try:
-        table = estimator.predict(
-            recordings.seat,
-            recordings.body,
-            recordings.dt,
-            windows=args["windows"],
-            resample=args["resample"],
-            names=recordings.names,
-        )
+        with warnings.catch_warnings():  # the same lines are printed below, once each, in the command's form
+            warnings.simplefilter("ignore", EstimateWarning)
+            table = estimator.predict(
+                recordings.seat,
+                recordings.body,
+                recordings.dt,
+                windows=args["windows"],
+                resample=args["resample"],
+                names=recordings.names,
+            )
     except InputError as exc:
         raise InputError(f"input = {args['input']}: {exc}") from None
     print(table.to_string(index=False))
@@ -156,14 +163,37 @@ def run(args: dict) -> pd.DataFrame:
             ) from None
         except OSError as exc:
             raise InputError(f"output = {output} cannot be written ({exc})") from None
+    for line in table.attrs.get("warnings", []):  # last: a refusal or Ctrl-C before this stays one line
+        print(f"hybrid-sysid-predict: warning: {line}", file=sys.stderr)
     return table
+
+
+HELP = """hybrid-sysid-predict: estimate p1 = C3/m3, p2 = K3/m3 and the seat mass m3 of your own recordings (seat and
+body accelerations in m/s^2, CSV or .npz) with a trained run's network; prints a table, one row per recording.
+
+{usage}
+
+  run=DIR             a run directory written by hybrid-sysid (its .hydra/config.yaml and checkpoints/)
+  input=FILE          the recordings: a CSV (columns seat_acc, body_acc, and time unless dt= is given) or .npz
+  output=CSV          also write the table to this new file (never the input, nor a file inside a run directory)
+  overwrite=true      let output= replace an existing file
+  windows=K           average the estimates of K windows per recording (default 8)
+  resample=true       resample recordings sampled at another rate than the run's data.dt
+  dt=SECONDS          the sampling interval, when the file does not give it
+
+Exit status: 0 done; 2 bad input (one line on stderr); 130 Ctrl-C. File formats, columns and flags:
+docs/predict.md.
+
+example:
+  hybrid-sysid-predict run=outputs/runs/2026-01-01_12-00-00 input=drive.csv output=estimates.csv
+"""
 
 
 def main(argv: list[str] | None = None) -> None:
     """Console script; exit status 2 with one line on stderr for bad input, 130 for Ctrl-C (128 + SIGINT)."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    if argv and argv[0] in ("-h", "--help"):
-        print(__doc__)
+    if any(a in ("-h", "--help") for a in argv):
+        print(HELP.format(usage=USAGE), end="")
         return
     try:
         run(parse_args(argv))

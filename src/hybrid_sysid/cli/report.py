@@ -1,13 +1,16 @@
-"""hybrid-sysid-report PATH...: rebuild a sweep's summary files and figures from run or sweep directories
-(merged), and with --reproduction the paper's figures beside ours; with --results, a results page instead (one
-section per PATH). Exit code: 0 if every run completed, 1 if any failed or is unreadable (everything is still
-written), 2 if a path does not exist or holds no runs, or --compare names a key that is not swept."""
+"""``hybrid-sysid-report PATH... [key=value ...]``: rebuild a sweep's table and figures from run records.
+
+The options are key=value, as in the other commands (``hybrid-sysid-report --help`` lists them); the former
+``--key value`` flags are still accepted as aliases. Exit status: 0 if every run completed, 1 if any failed or is
+unreadable (everything is still written), 2 for a bad argument (one line on stderr), a path that does not exist
+or holds no runs, or compare= naming a key that is not swept.
+"""
 
 from __future__ import annotations
 
-import argparse
 import shlex
 import sys
+from argparse import Namespace
 from pathlib import Path
 
 from hybrid_sysid.data.splits import SPLITS
@@ -19,59 +22,98 @@ from hybrid_sysid.report.tables import METRICS, to_markdown
 from hybrid_sysid.runs.records import RECORD
 
 PROG = "hybrid-sysid-report"
+HELP = f"""{PROG}: rebuild the comparison table (summary.md, summary.csv) and figures of sweeps or runs from their
+records (metrics.json), merged into one table; optionally the LaTeX table, the paper's figures beside ours, or a
+results page with one section per PATH. Nothing is trained.
+
+usage: {PROG} PATH... [key=value ...]
+
+  PATH                  run or sweep directories (merged; a PATH that starts with a key= is written ./KEY=...)
+  split=test            the split of the table and figures: {", ".join(SPLITS)}
+  metric=mean_rel_dev   {", ".join(METRICS)}
+  out=DIR               where to write (default: the PATH if one is given, else ./report)
+  compare=KEY           the swept key whose rows the marks compare (default: objective when swept)
+  exclude=GLOB          leave out runs whose name (relative to the paths' common parent) matches; repeatable,
+                        e.g. exclude='*/search/*' (experiment=tuned's trials)
+  latex=true            also write summary.tex (a booktabs table)
+  reproduction=true     also write reproduction.md: the paper's figures beside ours (with results=: a section
+                        per PATH in the page)
+  results=FILE          write a results page (one section per PATH, figures in FILE's folder/figures/) instead
+                        of the summary files, which are still written when out= is given
+  notes=MD              with results=: a hand-written markdown file placed after the page's header
+
+Exit status: 0 every run completed; 1 some failed or are unreadable (everything is still written); 2 a bad
+argument, a path without runs, or compare= naming a key that is not swept.
+
+examples:
+  {PROG} outputs/multirun/2026-01-01_12-00-00
+  {PROG} outputs/multirun/a outputs/multirun/b split=val compare=objective latex=true out=report
+  {PROG} outputs/multirun/tuned exclude='*/search/*' results=docs/results.md reproduction=true
+"""
+VALUE_KEYS = ("split", "metric", "out", "compare", "exclude", "notes", "results")
+FLAG_KEYS = ("latex", "reproduction")
+KEYS = VALUE_KEYS + FLAG_KEYS
 
 
-def parse_args(argv=None) -> argparse.Namespace:
-    p = argparse.ArgumentParser(
-        prog=PROG,
-        description="Rebuild the sweep tables and figures from run or sweep "
-        "directories (merged). Exit 0: all runs completed; 1: some failed; 2: bad path.",
-    )
-    p.add_argument("paths", nargs="+", type=Path, metavar="PATH", help="run or sweep directories (merged)")
-    p.add_argument(
-        "--split", default="test", choices=list(SPLITS), help="split of the table and figures (default: test)"
-    )
-    p.add_argument("--metric", default="mean_rel_dev", choices=list(METRICS), help="default: mean_rel_dev")
-    p.add_argument(
-        "--out", type=Path, default=None, help="output directory (default: the PATH if one is given, else ./report)"
-    )
-    p.add_argument(
-        "--compare",
-        default=None,
-        metavar="KEY",
-        help="the swept key whose rows the marks compare (default: objective when swept)",
-    )
-    p.add_argument(
-        "--exclude",
-        action="append",
-        default=[],
-        metavar="GLOB",
-        help="leave out the runs whose name relative to the paths' common parent matches (repeatable), "
-        "e.g. '*/search/*': experiment=tuned's trials",
-    )
-    p.add_argument("--latex", action="store_true", help="also write summary.tex (a booktabs table)")
-    p.add_argument(
-        "--reproduction",
-        action="store_true",
-        help="also write reproduction.md: the paper's figures beside ours and both protocols "
-        "(with --results: a section per PATH in the page)",
-    )
-    p.add_argument(
-        "--notes",
-        type=Path,
-        default=None,
-        metavar="MD",
-        help="with --results: a hand-written markdown file (the reading of the tables) placed after the page's header",
-    )
-    p.add_argument(
-        "--results",
-        type=Path,
-        default=None,
-        metavar="FILE",
-        help="write a results page (one section per PATH: table, figure in FILE's folder/figures/) "
-        "instead of the summary files, which are still written when --out is given",
-    )
-    return p.parse_args(argv)
+class UsageError(ValueError):
+    """A bad argument: one line on stderr, exit status 2."""
+
+
+def _key_values(argv: list[str]) -> list[str]:
+    """The arguments with the former ``--key value``, ``--key=value`` and ``--flag`` aliases as key=value."""
+    out, i = [], 0
+    while i < len(argv):
+        arg = argv[i]
+        if arg.startswith("--"):
+            key, sep, value = arg[2:].partition("=")
+            if key not in KEYS:
+                raise UsageError(f"unknown option {arg!r}; options are key=value: {', '.join(KEYS)} (see --help)")
+            if key in FLAG_KEYS and not sep:
+                value, sep = "true", "="
+            elif not sep:
+                if i + 1 >= len(argv):
+                    raise UsageError(f"{arg} needs a value: {key}=VALUE")
+                i, value = i + 1, argv[i + 1]
+            arg = f"{key}={value}"
+        out.append(arg)
+        i += 1
+    return out
+
+
+def parse_args(argv) -> Namespace:
+    """PATHs and key=value options -> the report's settings, each checked (UsageError)."""
+    args = Namespace(paths=[], split="test", metric="mean_rel_dev", out=None, compare=None, exclude=[])
+    args.latex = args.reproduction = False
+    args.notes = args.results = None
+    given = set()
+    for arg in _key_values(list(argv)):
+        key, sep, value = arg.partition("=")
+        if not sep or key not in KEYS:
+            if sep and key.isidentifier() and not Path(arg).exists():
+                raise UsageError(f"unknown key {key!r} in {arg!r}; allowed keys: {', '.join(KEYS)}")
+            args.paths.append(Path(arg))
+            continue
+        if key in given and key != "exclude":
+            raise UsageError(f"{key} is given twice; give it once")
+        given.add(key)
+        if key in FLAG_KEYS:
+            if value.lower() not in ("true", "false"):
+                raise UsageError(f"{key} = {value!r} is not allowed: true or false")
+            setattr(args, key, value.lower() == "true")
+        elif key == "exclude":  # repeatable, or a list: exclude=[a,b]
+            items = value[1:-1].split(",") if value.startswith("[") and value.endswith("]") else [value]
+            args.exclude += [item.strip() for item in items if item.strip()]
+        elif key == "split" and value not in SPLITS:
+            raise UsageError(f"split = {value!r} is not allowed: one of {', '.join(SPLITS)}")
+        elif key == "metric" and value not in METRICS:
+            raise UsageError(f"metric = {value!r} is not allowed: one of {', '.join(METRICS)}")
+        elif not value:
+            raise UsageError(f"{key}= needs a value")
+        else:
+            setattr(args, key, Path(value) if key in ("out", "notes", "results") else value)
+    if not args.paths:
+        raise UsageError(f"no PATH given; usage: {PROG} PATH... [key=value ...] (see --help)")
+    return args
 
 
 def _error(message: str) -> int:
@@ -81,14 +123,20 @@ def _error(message: str) -> int:
 
 def main(argv=None) -> int:
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
-    args = parse_args(argv)
+    if any(a in ("-h", "--help") for a in argv):
+        print(HELP, end="")
+        return 0
+    try:
+        args = parse_args(argv)
+    except UsageError as exc:
+        return _error(str(exc))
     for path in args.paths:  # each path must contribute, so a typo is not silently merged away
         if not path.exists():
             return _error(f"path does not exist: {path}")
         if not find_runs([path]):
             return _error(f"no runs ({RECORD}) under {path}")
     if args.notes is not None and not args.notes.is_file():
-        return _error(f"--notes file does not exist: {args.notes}")
+        return _error(f"notes = {args.notes}: the file does not exist")
     bad = 0
     try:
         if args.results is None or args.out is not None:
@@ -131,8 +179,8 @@ def main(argv=None) -> int:
                 f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and {args.results.parent / 'figures'}/",
                 file=sys.stderr,
             )
-    except ValueError as exc:  # e.g. --compare naming a key that is not swept
+    except ValueError as exc:  # e.g. compare= naming a key that is not swept
         return _error(str(exc))
-    except OSError as exc:  # e.g. --out on a read-only file system: the runs themselves are untouched
+    except OSError as exc:  # e.g. out= on a read-only file system: the runs themselves are untouched
         return _error(f"cannot write the report: {type(exc).__name__}: {exc}")
     return 1 if bad else 0

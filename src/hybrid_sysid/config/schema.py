@@ -87,7 +87,7 @@ class TrainerConfig:
     threads: Optional[int] = None
     deterministic: bool = True
     monitor: str = "auto"
-    progress_bar: bool = True
+    progress_bar: Any = "auto"  # true, false, or auto: a bar when stdout is a terminal
     profiler: Optional[str] = None  # simple or advanced: Lightning's profiler, its report in the run directory
     extra: Dict[str, Any] = field(default_factory=dict)  # passed to lightning.Trainer as is
 

@@ -22,6 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config.schema import SECTIONS
 from hybrid_sysid.config.targets import arguments, build, check_target
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
+from hybrid_sysid.core.install import install_command
 from hybrid_sysid.core.options import MONITORS, OPTIMIZERS, PROFILERS, SCHEDULES, TASKS
 from hybrid_sysid.data.dataset import CHANNELS
 from hybrid_sysid.data.spec import DatasetSpec, WindowSettings, check_eval_windows
@@ -86,6 +87,8 @@ def validate(cfg: DictConfig) -> None:
     if t.threads is not None and t.threads < 1:
         bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
     check_choice("trainer.monitor", t.monitor, MONITORS)
+    if not (isinstance(t.progress_bar, bool) or t.progress_bar == "auto"):
+        bad("trainer.progress_bar", t.progress_bar, "true, false or auto (a bar when stdout is a terminal)")
     if t.get("profiler") is not None:
         check_choice("trainer.profiler", t.profiler, PROFILERS)
     validate_loggers(cfg)
@@ -258,7 +261,6 @@ def _validate_baseline(cfg: DictConfig, spec: DatasetSpec) -> None:
 
 # a logger class -> the modules it can run on (any one of them); they come with the "loggers" extra
 LOGGER_MODULES = {"TensorBoardLogger": ("tensorboard", "tensorboardX"), "MLFlowLogger": ("mlflow",)}
-LOGGERS_EXTRA = 'pip install -e ".[loggers]"'
 
 
 def validate_loggers(cfg: DictConfig) -> None:
@@ -270,12 +272,13 @@ def validate_loggers(cfg: DictConfig) -> None:
         check_target(target, f"logger.{name}")
         needs = next((mods for cls, mods in LOGGER_MODULES.items() if target.endswith("." + cls)), ())
         if needs and not any(importlib.util.find_spec(m) for m in needs):
-            raise ConfigError(f"logger.{name} needs the {needs[0]} package, which is not installed: {LOGGERS_EXTRA}")
+            raise ConfigError(
+                f"logger.{name} needs the {needs[0]} package, which is not installed: {install_command('loggers')}"
+            )
 
 
 # a callback class -> the module it needs; it comes with the "rich" extra
 CALLBACK_MODULES = {"RichProgressBar": "rich", "RichModelSummary": "rich"}
-RICH_EXTRA = 'pip install -e ".[rich]"'
 
 
 def validate_callbacks(cfg: DictConfig) -> None:
@@ -288,6 +291,8 @@ def validate_callbacks(cfg: DictConfig) -> None:
         check_target(target, f"callbacks.{name}")
         module = CALLBACK_MODULES.get(target.rsplit(".", 1)[-1])
         if module and not importlib.util.find_spec(module):
-            raise ConfigError(f"callbacks.{name} needs the {module} package, which is not installed: {RICH_EXTRA}")
+            raise ConfigError(
+                f"callbacks.{name} needs the {module} package, which is not installed: {install_command('rich')}"
+            )
         if "monitor" in cb:
             check_choice(f"callbacks.{name}.monitor", cb.monitor, MONITORS)

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import sys
 from pathlib import Path
 
 import lightning as L
@@ -75,7 +76,8 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
     t = cfg.trainer
     callbacks = [StopAtSafePoints(), ValidateAtEnd(), *callbacks]
     bar = L.pytorch.callbacks.ProgressBar
-    if not t.progress_bar:  # bars off (a parallel launcher's workers): a configured bar too
+    show_bar = progress_bar_on(t.progress_bar)
+    if not show_bar:  # bars off (a parallel launcher's workers, a log file): a configured bar too
         callbacks = [c for c in callbacks if not isinstance(c, bar)]
     elif not any(isinstance(c, bar) for c in callbacks):  # the default bar unless callbacks= chose another
         # Lightning redraws the bar every step by default; every 10th step reads as well and costs less
@@ -89,7 +91,7 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         deterministic=t.deterministic,
         logger=list(loggers) or False,
         callbacks=callbacks,
-        enable_progress_bar=t.progress_bar,
+        enable_progress_bar=show_bar,
         enable_model_summary=False,
         num_sanity_val_steps=0,
         default_root_dir=str(run_dir),
@@ -100,6 +102,14 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
     kwargs.update(t.get("extra", {}))
     kwargs.update(overrides)
     return L.Trainer(**kwargs)
+
+
+def progress_bar_on(setting) -> bool:
+    """trainer.progress_bar: true or false as given; auto: a bar only when stdout (where Lightning draws it) is a
+    terminal, so a run whose output goes to a file or a pipe writes no bar into it."""
+    if isinstance(setting, bool):
+        return setting
+    return sys.stdout is not None and sys.stdout.isatty()
 
 
 def build_callbacks(cfg: DictConfig, monitor: str) -> list:
