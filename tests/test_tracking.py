@@ -1,14 +1,23 @@
 """Experiment trackers (conf/logger): each writes the files a user opens, holding the run's config, training
-loss, validation metrics, learning-curve rows and final results, the same numbers as the run's own record."""
+loss, validation metrics, learning-curve rows and final results, the same numbers as the run's own record; and
+the names, tags, artifacts and TensorBoard hparams a user sees, read back from the stores."""
 
 import importlib.util
+import os
+import subprocess
+import sys
+from pathlib import Path
 
 import pandas as pd
 import pytest
 import yaml
+from hydra.types import RunMode
+from omegaconf import OmegaConf
 
 from hybrid_sysid.config import ConfigError, validate
+from hybrid_sysid.training import tracking
 from hybrid_sysid.training.run import train
+from hybrid_sysid.training.tracking import Naming, job_naming
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=60", "trainer.eval_every_n_steps=30"]
 
@@ -30,7 +39,9 @@ def curve_series(run_dir) -> dict:
 def check_logged(series: dict, record: dict, run_dir) -> None:
     """series: metric name -> its logged values in step order, as a tracker shows them; checked against the
     run's record and curves.csv."""
-    assert len(series["train/loss"]) == 1  # 60 steps: the module logs the loss every 50th step
+    # 60 steps: the module logs the loss every 50th step; Lightning logs again at the stop that ValidateAtEnd asks
+    # for at the last step (the latest value, repeated)
+    assert len(series["train/loss"]) == 2 and series["train/loss"][0] == pytest.approx(series["train/loss"][1])
     assert len(series["val/loss"]) == 2 and len(series["val/rel_dev"]) == 2  # a validation every 30 steps
     assert min(series[record["monitor"]]) == pytest.approx(record["best_score"])  # the selected checkpoint
     for name, values in curve_series(run_dir).items():
@@ -116,3 +127,187 @@ def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
     )
     monkeypatch.setattr(app, "installed", lambda module: True)
     assert app.missing_extra(["hparams_search=fast_cnn", "launcher=slurm"]) is None
+
+
+def fake_hydra(sweep_dir, overrides, params=None, mode=RunMode.MULTIRUN, preset="robustness", num=3):
+    """What a job's HydraConfig.get() holds of its names."""
+    return OmegaConf.create(
+        {
+            "mode": mode,
+            "runtime": {"choices": {"experiment": preset, "objective": "hybrid", "model": "fast_cnn"}},
+            "overrides": {"task": overrides},
+            "sweep": {"dir": str(sweep_dir)},
+            "sweeper": {"params": params},
+            "job": {"num": num},
+        }
+    )
+
+
+def test_a_sweep_s_runs_are_named_by_the_overrides_that_differ(tmp_path):
+    sweep = tmp_path / "2026-11-24_01-02-03_000001"
+    sweep.mkdir()
+    job = ["data=tiny", "logger=mlflow", "objective=hybrid", "seed=1"]
+    naming = job_naming(fake_hydra(sweep, job, {"seed": "0,1,2"}))  # no multirun.yaml: the sweeper's keys only
+    assert naming.run == "seed=1" and naming.varied == ("seed=1",)
+    assert naming.experiment == "robustness:2026-11-24_01-02-03_000001" and naming.sweep_dir == sweep
+    # the command line's sweeps, as Hydra saved them in multirun.yaml before the first job
+    saved = {"hydra": {"overrides": {"task": ["data=tiny", "logger=mlflow", "objective=labelled,hybrid"]}}}
+    OmegaConf.save(
+        OmegaConf.create({**saved, "hydra": {**saved["hydra"], "sweeper": {"params": {"seed": "range(3)"}}}}),
+        sweep / "multirun.yaml",
+    )
+    naming = job_naming(fake_hydra(sweep, job, {"seed": "range(3)"}))
+    assert naming.run == "objective=hybrid seed=1" and naming.preset == "robustness"
+    assert job_naming(fake_hydra(sweep, job, preset=None)).experiment == "sweep:2026-11-24_01-02-03_000001"
+    # a single run: its overrides (the logger's left out), in the experiment "runs"
+    single = job_naming(fake_hydra(sweep, job, mode=RunMode.RUN))
+    assert (single.experiment, single.run, single.sweep_dir) == ("runs", "data=tiny objective=hybrid seed=1", None)
+    assert job_naming(fake_hydra(sweep, ["logger=mlflow"], mode=RunMode.RUN)).run is None  # its directory's name
+    assert tracking.swept_keys(sweep, {"model.optim.lr": "tag(log, interval(0.002, 0.05))"}) == {"objective", "seed"}
+    assert tracking.swept_keys(tmp_path / "none", {"model.optim.lr": "tag(log, interval(0.002, 0.05))"}) == {
+        "model.optim.lr"
+    }
+
+
+def git_head():
+    here = Path(tracking.__file__).parent
+    out = subprocess.run(["git", "rev-parse", "HEAD"], cwd=here, capture_output=True, text=True)
+    return out.stdout.strip() if out.returncode == 0 else None
+
+
+def sweep_naming(sweep_dir, seed, objective="labelled"):
+    varied = (f"objective={objective}", f"seed={seed}")
+    return Naming(
+        f"robustness:{sweep_dir.name}",
+        " ".join(varied),
+        varied,
+        "robustness",
+        sweep_dir,
+        {"experiment": "robustness", "objective": objective, "model": "fast_cnn"},
+    )
+
+
+def test_mlflow_names_tags_and_artifacts(make_cfg, tmp_path, capfd, caplog):
+    pytest.importorskip("mlflow", reason='needs the loggers extra: pip install -e ".[loggers]"')
+    from mlflow import MlflowClient
+
+    uri = f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}"
+    sweep = tmp_path / "sw"
+    for seed in (0, 1):
+        cfg = make_cfg(*TINY, "logger=mlflow", f"logger.mlflow.tracking_uri={uri}", f"seed={seed}")
+        hydra_dir = sweep / str(seed) / ".hydra"  # as Hydra writes it before the job
+        hydra_dir.mkdir(parents=True)
+        OmegaConf.save(cfg, hydra_dir / "config.yaml")
+        (hydra_dir / "overrides.yaml").write_text(f"- seed={seed}\n")
+        train(cfg, sweep / str(seed), [f"seed={seed}"], experiment=sweep_naming(sweep, seed))
+    client = MlflowClient(uri)
+    exp = client.get_experiment_by_name("robustness:sw")
+    assert exp.tags["preset"] == "robustness" and exp.tags["sweep"] == "sw"
+    assert exp.artifact_location == (tmp_path / "outputs" / "mlartifacts" / "robustness:sw").as_uri()
+    runs = {r.info.run_name: r for r in client.search_runs([exp.experiment_id])}
+    assert sorted(runs) == ["objective=labelled seed=0", "objective=labelled seed=1"]
+    head = git_head()
+    for seed in (0, 1):
+        run = runs[f"objective=labelled seed={seed}"]
+        tags = run.data.tags
+        assert (tags["objective"], tags["seed"], tags["preset"], tags["sweep"]) == (
+            "labelled",
+            str(seed),
+            "robustness",
+            "sw",
+        )
+        assert tags["run_dir"] == str((sweep / str(seed)).resolve()) and tags["overrides"] == f"seed={seed}"
+        assert tags.get("git_commit") == head and tags.get("mlflow.source.git.commit") == head
+        files = {a.path for a in client.list_artifacts(run.info.run_id)}
+        assert {"metrics.json", "curves.csv", "config"} <= files
+        config = {a.path for a in client.list_artifacts(run.info.run_id, "config")}
+        assert config == {"config/config.yaml", "config/overrides.yaml"}
+    # the figures, drawn after the run: added to the run this process finished there
+    figures = sweep / "0" / "figures"
+    figures.mkdir()
+    (figures / "learning_curves.png").write_bytes(b"\x89PNG\r\n")
+    tracking.log_run_figures(sweep / "0")
+    run_id = runs["objective=labelled seed=0"].info.run_id
+    assert [a.path for a in client.list_artifacts(run_id, "figures")] == ["figures/learning_curves.png"]
+    # the sweep's end: its summary and figures in the run "sweep summary", the table as the experiment's note
+    (sweep / "summary.md").write_text("| objective | p1 |\n| --- | --- |\n| labelled | 1.0 |\n")
+    (sweep / "summary.csv").write_text("objective,p1\nlabelled,1.0\n")
+    (sweep / "figures").mkdir()
+    (sweep / "figures" / "robustness.png").write_bytes(b"\x89PNG\r\n")
+    config = OmegaConf.create(
+        {"logger": OmegaConf.to_container(cfg.logger), "hydra": {"runtime": {"choices": {"experiment": "robustness"}}}}
+    )
+    for _ in range(2):  # a re-run sweep logs into the same run
+        tracking.log_sweep(config, sweep)
+    summary = client.search_runs([exp.experiment_id], "tags.kind = 'sweep'")
+    assert [r.info.run_name for r in summary] == [tracking.SWEEP_RUN] and summary[0].info.status == "FINISHED"
+    files = {a.path for a in client.list_artifacts(summary[0].info.run_id)}
+    assert {"summary.md", "summary.csv", "figures"} <= files
+    assert client.get_experiment(exp.experiment_id).tags["mlflow.note.content"].startswith("| objective")
+    said = capfd.readouterr()
+    for text in (said.out, said.err, caplog.text):
+        assert "not found. Creating it" not in text and "not written to the tracker" not in text
+
+
+def test_tensorboard_hparams_hold_the_hyperparameters_and_final_metrics(make_cfg, tmp_path):
+    pytest.importorskip("tensorboard", reason='needs the loggers extra: pip install -e ".[loggers]"')
+    from tensorboard.backend.event_processing.event_accumulator import EventAccumulator
+    from tensorboard.plugins.hparams import metadata
+
+    sweep = tmp_path / "sw"
+    record = train(make_cfg(*TINY, "logger=tensorboard"), sweep / "0", experiment=sweep_naming(sweep, 0))
+    logdir = sweep / "tensorboard" / "objective=labelled seed=0"  # the UI's run name: the differing overrides
+    assert [p.name for p in (sweep / "tensorboard").iterdir()] == [logdir.name]
+    events = EventAccumulator(str(logdir)).Reload()
+    content = events.PluginTagToContent(metadata.PLUGIN_NAME)
+    start = metadata.parse_session_start_info_plugin_data(content[metadata.SESSION_START_INFO_TAG])
+    hparams = {k: v.WhichOneof("kind") and getattr(v, v.WhichOneof("kind")) for k, v in start.hparams.items()}
+    assert hparams["objective"] == "labelled" and hparams["model"] == "fast_cnn" and hparams["seed"] == 0
+    assert hparams["model.optim.lr"] == pytest.approx(0.02) and hparams["noise.train_std"] == 0
+    assert hparams["trainer.max_steps"] == 60
+    experiment = metadata.parse_experiment_plugin_data(content[metadata.EXPERIMENT_TAG])
+    shown = {m.name.tag for m in experiment.metric_infos}
+    final = {k: v for k, v in final_metrics(record).items() if k.startswith("final/test/")}
+    assert shown == set(final) and {k.rsplit("/", 1)[-1] for k in shown} == {"p1_mean_rel_dev", "p2_mean_rel_dev"}
+    assert {h.name for h in experiment.hparam_infos} == set(hparams)
+    assert {h.name for h in experiment.hparam_infos if h.differs} == {"objective", "seed"}  # the tab shows them first
+    scalars = {t: [e.value for e in events.Scalars(t)] for t in events.Tags()["scalars"]}
+    for tag, value in final.items():  # the table's cells: the metrics' logged values
+        assert scalars[tag] == pytest.approx([value])
+
+
+def test_a_tracked_sweep_as_a_user_runs_it(tmp_path, tiny_cache):
+    """A 2-job sweep in a new process with both trackers: names, figures, the summary run, and no warning."""
+    pytest.importorskip("mlflow", reason='needs the loggers extra: pip install -e ".[loggers]"')
+    pytest.importorskip("tensorboard", reason='needs the loggers extra: pip install -e ".[loggers]"')
+    from mlflow import MlflowClient
+
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tiny_cache), "HYDRA_FULL_ERROR": "0"}
+    args = ["-m", "objective=labelled,hybrid", "data=tiny", "trainer=debug", "trainer.progress_bar=false"]
+    args += ["logger=[mlflow,tensorboard]", f"paths.root={tmp_path / 'outputs'}", f"hydra.sweep.dir={tmp_path / 'sw'}"]
+    proc = subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid", *args],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    client = MlflowClient(f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}")
+    exp = client.get_experiment_by_name("sweep:sw")
+    runs = {r.info.run_name: r for r in client.search_runs([exp.experiment_id])}
+    assert sorted(runs) == ["objective=hybrid", "objective=labelled", tracking.SWEEP_RUN]
+    for name in ("objective=hybrid", "objective=labelled"):
+        assert runs[name].data.tags["objective"] == name.removeprefix("objective=")
+        figures = {a.path for a in client.list_artifacts(runs[name].info.run_id, "figures")}
+        assert figures == {"figures/learning_curves.png", "figures/test_predictions.png"}
+    files = {a.path for a in client.list_artifacts(runs[tracking.SWEEP_RUN].info.run_id)}
+    assert {"summary.md", "summary.csv", "multirun.yaml"} <= files
+    assert sorted(p.name for p in (tmp_path / "sw" / "tensorboard").iterdir()) == [
+        "objective=hybrid",
+        "objective=labelled",
+    ]
+    said = proc.stdout + proc.stderr + "".join(p.read_text() for p in (tmp_path / "sw").glob("*/*.log"))
+    assert "not found. Creating it" not in said and "not written to the tracker" not in said
+    assert not (tmp_path / "mlruns").exists()  # the artifacts beside the store, not in the working directory

@@ -66,10 +66,12 @@ def hydra_main(cfg: DictConfig) -> Any:
     run_dir, overrides = Path(hc.runtime.output_dir), list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
     sweep_dir = Path(hc.sweep.dir) if multirun else None
-    # in a tracker, a sweep's jobs are runs of one experiment named after the sweep directory
-    experiment = sweep_dir.name if multirun else None
+    # in a tracker, a sweep's jobs are runs of one experiment (<preset>:<sweep>) named by their differing overrides
+    from hybrid_sysid.training.tracking import job_naming, log_run_figures
+
+    experiment = job_naming(hc)
     record = run_job(
-        lambda: run_task(cfg, run_dir, overrides, multirun, experiment, hc.job.override_dirname or None),
+        lambda: run_task(cfg, run_dir, overrides, multirun, experiment, experiment.run),
         run_dir,
         overrides,
         cfg.get("seed", 0),
@@ -79,6 +81,7 @@ def hydra_main(cfg: DictConfig) -> Any:
     )
     if cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
         _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
+        log_run_figures(run_dir)  # into the job's MLflow run, now that they exist
     return record
 
 

@@ -34,7 +34,7 @@ from hybrid_sysid.training.build import (
 )
 from hybrid_sysid.training.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
 from hybrid_sysid.training.evaluation import by_road_class, class_table, console_table, score, write_outputs
-from hybrid_sysid.training.tracking import build_loggers, finish, hyperparameters
+from hybrid_sysid.training.tracking import Naming, build_loggers, finish, hyperparameters
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -43,7 +43,7 @@ def train(
     cfg: DictConfig,
     run_dir: str | Path,
     overrides=(),
-    experiment: str | None = None,
+    experiment: str | Naming | None = None,
     run_name: str | None = None,
     checked: bool = False,
 ) -> dict:
@@ -65,7 +65,7 @@ def train(
     if done is not None:
         return done
     L.seed_everything(cfg.seed, workers=True)  # 0 included
-    loggers = build_loggers(cfg, run.path, experiment, run_name)
+    loggers = build_loggers(cfg, run.path, experiment, run_name, overrides)
     for logger in loggers:
         logger.log_hyperparams(hyperparameters(cfg))
     if cfg.get("baseline") is not None:
