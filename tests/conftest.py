@@ -1,9 +1,30 @@
 import os
+import sys
 
 import pytest
 from hydra import compose, initialize_config_dir
 
 pytest_plugins = ["estimator_run"]  # the trained run test_estimator.py and test_predict.py share (tiny_run, est)
+
+# the datasets the app's subprocesses read in the shared cache (tiny_cache): data=tiny on each car they use
+TINY_DATA = (["data=tiny"], ["data=tiny", "car=soft_seat"])
+
+
+@pytest.fixture(scope="session")
+def tiny_cache(tmp_path_factory):
+    """One dataset cache for the whole test run, holding data=tiny (on the paper's car and car=soft_seat),
+    simulated here once. A subprocess of the app that reads it (HYBRID_SYSID_CACHE or data.cache_dir) starts
+    training at once: it neither simulates the data nor compiles the numba kernel (seconds a process). Tests of
+    the cache itself, and tests that check nothing was simulated, keep a cache of their own."""
+    from hybrid_sysid.config import CONF_DIR
+    from hybrid_sysid.training.build import build_datamodule
+
+    cache = tmp_path_factory.getbasetemp() / "tiny_cache"
+    for overrides in TINY_DATA:
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            cfg = compose(config_name="config", overrides=[*overrides, f"data.cache_dir={cache}"])
+        build_datamodule(cfg).prepare_data()  # simulates into the cache, then puts torch's thread count back
+    return cache
 
 
 @pytest.fixture
@@ -19,6 +40,43 @@ def make_cfg(tmp_path):
             )
 
     return _make
+
+
+@pytest.fixture
+def cli_in_process(monkeypatch, capfd):
+    """A console script's main() run in this process as the shell would start it: (exit status, stdout, stderr).
+    For a refusal, which ends before any work, a new process would only add seconds of imports; a test that needs
+    a real process (signals, another process's lock, an interpreter's own output) starts one. Reset around the
+    call: the working directory, the environment (no HYDRA_FULL_ERROR, as a user has it), sys.argv, the state the
+    command keeps for its one process (hybrid_sysid.cli.job), the locks it took and Hydra's global instance."""
+    import copy
+
+    from hydra.core.global_hydra import GlobalHydra
+
+    import hybrid_sysid.cli.job as job
+
+    def run(main, *args, cwd, env=None):
+        monkeypatch.chdir(cwd)
+        monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
+        for key, value in (env or {}).items():
+            monkeypatch.setenv(key, str(value))
+        monkeypatch.setattr(sys, "argv", [main.__module__, *map(str, args)])
+        state = copy.deepcopy(job._state)  # as a new process has it
+        monkeypatch.setattr(job, "_state", state)
+        capfd.readouterr()
+        try:
+            main()
+            code = 0
+        except SystemExit as exc:
+            code = exc.code
+        finally:
+            for lock in state["locks"].values():
+                lock.release()
+            GlobalHydra.instance().clear()
+        out = capfd.readouterr()
+        return code, out.out, out.err
+
+    return run
 
 
 @pytest.fixture

@@ -17,19 +17,18 @@ TINY = [
 C3, K3 = 615.0, 98935.0  # the paper's seat damper and spring (sec. 2.2)
 
 
-@pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory):
+@pytest.fixture(scope="session")
+def tiny_run(tmp_path_factory, tiny_cache):
     """A FastCNN trained for 200 steps on data=tiny, its config saved as Hydra would. About 10% mean relative
-    deviation, against about 40% for a constant guess: enough to tell right input from wrong. The directory is
-    per test run and train() skips a completed run, so test_predict.py reuses this one without training."""
+    deviation, against about 40% for a constant guess: enough to tell right input from wrong. Trained once per test
+    run (its data from the shared cache, conftest.py's tiny_cache); a test that changes it works on a copy."""
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
     from hybrid_sysid.training.run import train
 
-    base = tmp_path_factory.getbasetemp()
-    run_dir = base / "tiny_estimator_run"
-    overrides = [*TINY, f"data.cache_dir={base / 'tiny_estimator_cache'}"]
+    run_dir = tmp_path_factory.getbasetemp() / "tiny_estimator_run"
+    overrides = [*TINY, f"data.cache_dir={tiny_cache}"]
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
         cfg = compose(config_name="config", overrides=overrides)
     train(cfg, run_dir, overrides)
@@ -38,7 +37,7 @@ def tiny_run(tmp_path_factory):
     return run_dir
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture(scope="session")
 def est(tiny_run):
     from hybrid_sysid import load_estimator
 

@@ -195,6 +195,7 @@ def run_cli(tmp_path, *args):
 
 @pytest.mark.integration
 def test_cli_prints_one_line_and_exits_2_before_any_work(tmp_path):
+    # a real process: all it prints (imports' warnings too) and its exit status, as the shell sees them
     proc = run_cli(tmp_path, "data.speed=0")
     assert proc.returncode == 2
     assert proc.stderr.strip().splitlines()[-1] == "error: data.speed = 0.0 is not allowed: must be > 0 (m/s)"
@@ -205,6 +206,7 @@ def test_cli_prints_one_line_and_exits_2_before_any_work(tmp_path):
 @pytest.mark.integration
 @pytest.mark.parametrize("arg", ["data.no_such_key=1", "objective=no_such"])
 def test_cli_composition_errors_exit_2_without_traceback(tmp_path, arg):
+    # a real process: all it prints and its exit status, as the shell sees them
     proc = run_cli(tmp_path, arg)
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr

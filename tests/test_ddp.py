@@ -56,7 +56,8 @@ RECORDING = textwrap.dedent("""
 
 
 @pytest.mark.integration
-def test_two_processes_draw_different_windows_and_write_one_record(tmp_path):
+def test_two_processes_draw_different_windows_and_write_one_record(tmp_path, tiny_cache):
+    # real processes: Lightning starts the second rank as a process of its own, with the same command
     script = tmp_path / "app.py"
     script.write_text(RECORDING)
     env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
@@ -69,7 +70,7 @@ def test_two_processes_draw_different_windows_and_write_one_record(tmp_path):
             "trainer.max_steps=12",
             "trainer.eval_every_n_steps=6",
             f"hydra.run.dir={tmp_path / 'run'}",
-            f"data.cache_dir={tmp_path / 'cache'}",
+            f"data.cache_dir={tiny_cache}",  # data=tiny, simulated once for the test run: both ranks read it
         ],
         cwd=tmp_path,
         env=env,

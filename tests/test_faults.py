@@ -1,5 +1,7 @@
-"""Fault injection on the app in a subprocess, as a cluster or a user would meet it: termination signals to a run
-and to a sweep, a full disk, and refusals that must leave nothing behind. Damaged files: tests/test_reliability.py."""
+"""Fault injection on the app as a cluster or a user would meet it: termination signals to a run and to a
+sweep, a full disk, and refusals that must leave nothing behind. A real process where the process is what is tested
+(signals, another process's lock, a full disk); a refusal, which ends before any work, runs the command's main() in
+this process (cli_in_process in conftest.py). Damaged files: tests/test_reliability.py."""
 
 import json
 import os
@@ -33,27 +35,29 @@ TINY = [
 ]
 
 
-def env_for(tmp_path):
+def env_for(tmp_path, cache=None):
+    """The user's environment (no HYDRA_FULL_ERROR); the dataset cache ``cache`` (the shared tiny_cache, whose
+    data=tiny a run then reads instead of simulating), else an empty one of the test's own."""
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    return {**env, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
+    return {**env, "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache")}
 
 
-def launch(tmp_path, *args):
+def launch(tmp_path, *args, cache=None):
     return subprocess.Popen(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,
-        env=env_for(tmp_path),
+        env=env_for(tmp_path, cache),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
     )
 
 
-def run_app(tmp_path, *args, timeout=600):
+def run_app(tmp_path, *args, timeout=600, cache=None):
     return subprocess.run(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,
-        env=env_for(tmp_path),
+        env=env_for(tmp_path, cache),
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -79,11 +83,26 @@ def same_numbers(a, b):
 
 
 @pytest.fixture(scope="module")
-def reference_run(tmp_path_factory):
-    tmp = tmp_path_factory.mktemp("reference")
-    proc = run_app(tmp, *ARGS, f"hydra.run.dir={tmp / 'run'}")
-    assert proc.returncode == 0, proc.stderr[-2000:]
-    return tmp / "run"
+def reference_run(tmp_path_factory, tiny_cache):
+    """The uninterrupted run of ARGS, trained in this process by the function the app's job runs (train), its
+    config saved as Hydra saves it: the numbers an interrupted run must resume to, and a completed run to
+    evaluate. Not a subprocess: nothing here is about the process (the tests below start theirs)."""
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.config import CONF_DIR
+    from hybrid_sysid.training.run import train
+
+    run = tmp_path_factory.mktemp("reference") / "run"
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        cfg = compose(config_name="config", overrides=[*ARGS, f"data.cache_dir={tiny_cache}"])
+    n = torch.get_num_threads()
+    try:
+        assert train(cfg, run, ARGS)["status"] == "completed"
+    finally:
+        torch.set_num_threads(n)
+    (run / ".hydra").mkdir()
+    OmegaConf.save(cfg, run / ".hydra" / "config.yaml")
+    return run
 
 
 @pytest.fixture(scope="module")
@@ -91,9 +110,9 @@ def uninterrupted(reference_run):
     return record(reference_run)
 
 
-def interrupt(tmp_path, run, how):
+def interrupt(tmp_path, run, how, cache):
     """Start a run, wait for its first checkpoint (step 200 of 400), then end it with ``how``."""
-    proc = launch(tmp_path, *ARGS, f"hydra.run.dir={run}")
+    proc = launch(tmp_path, *ARGS, f"hydra.run.dir={run}", cache=cache)
     wait_for(run / "checkpoints" / "last.ckpt", proc)
     time.sleep(0.3)  # a few steps past the checkpoint, well before the next one
     proc.send_signal(how)
@@ -102,14 +121,14 @@ def interrupt(tmp_path, run, how):
 
 
 @pytest.mark.slow  # SIGKILL; the SIGTERM case below resumes the same way
-def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
+def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted, tiny_cache):
     run = tmp_path / "killed"
-    code, _ = interrupt(tmp_path, run, signal.SIGKILL)
+    code, _ = interrupt(tmp_path, run, signal.SIGKILL, tiny_cache)
     assert code == -signal.SIGKILL and not (run / "metrics.json").exists()
     saved = torch.load(run / "checkpoints" / "last.ckpt", map_location="cpu")  # torch's default weights_only
     assert saved["global_step"] == 200
 
-    resumed = run_app(tmp_path, *ARGS, f"resume={run}")
+    resumed = run_app(tmp_path, *ARGS, f"resume={run}", cache=tiny_cache)
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     assert "resuming from" in resumed.stdout + resumed.stderr
     same_numbers(uninterrupted, record(run))
@@ -121,15 +140,16 @@ def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted):
 @pytest.mark.parametrize(
     "how", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)], ids=["SIGTERM", "SIGINT"]
 )
-def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_path, uninterrupted, how):
+def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_path, uninterrupted, how, tiny_cache):
+    # real processes: a signal to the app's process, its exit status, and a resume by a new process
     run = tmp_path / "run"
-    code, out = interrupt(tmp_path, run, how)
+    code, out = interrupt(tmp_path, run, how, tiny_cache)
     assert code == 128 + how, out[-2000:]
     rec = record(run)
     assert rec["status"] == "interrupted" and signal.Signals(how).name in rec["error"]
     moved = tmp_path / "moved"  # a copied or moved run directory resumes from its own files
     run.rename(moved)
-    resumed = run_app(tmp_path, *ARGS, f"resume={moved}")
+    resumed = run_app(tmp_path, *ARGS, f"resume={moved}", cache=tiny_cache)
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     same_numbers(uninterrupted, record(moved))
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
@@ -139,6 +159,7 @@ def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_p
 def test_a_directory_another_process_holds_is_refused_before_anything_is_written(tmp_path, key):
     """The lock alone, held here as another writer would hold it: the command is refused in one line, exit 2,
     and nothing in the directory changes (the test below has a real first writer finish)."""
+    # a new process: the lock is another process's (this one holds it)
     from hybrid_sysid.runs.rundir import hold_for_writing
 
     where = tmp_path / "held"
@@ -197,14 +218,21 @@ def truncated_run(tmp_path, reference_run):
         pytest.param("init_from a truncated one", marks=pytest.mark.slow),  # the same check_weights as eval's
     ],
 )
-def test_a_refused_evaluation_or_init_from_is_one_line_and_leaves_no_directory(tmp_path, truncated_run, case):
+def test_a_refused_evaluation_or_init_from_is_one_line_and_leaves_no_directory(
+    tmp_path, truncated_run, case, cli_in_process
+):
+    # in this process (the command's main()): a refusal ends before any work; an evaluation refused in a real
+    # process: tests/test_transfer.py::test_eval_cli_sweeps_cars_and_refuses_another_objective
+    from hybrid_sysid.cli.evaluate import main as evaluate
+    from hybrid_sysid.cli.train import main as train
+
     out = tmp_path / "out"
     if case.startswith("eval"):
-        cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"hydra.run.dir={out}"]
-        cli += [] if case == "eval without run=" else [f"run={truncated_run}"]
+        cli = [evaluate, f"hydra.run.dir={out}"] + ([] if case == "eval without run=" else [f"run={truncated_run}"])
     else:
-        cli = [sys.executable, "-m", "hybrid_sysid", *ARGS, f"init_from={truncated_run}", f"hydra.run.dir={out}"]
-    proc = subprocess.run(cli, cwd=tmp_path, env=env_for(tmp_path), capture_output=True, text=True, timeout=600)
+        cli = [train, *ARGS, f"init_from={truncated_run}", f"hydra.run.dir={out}"]
+    code, stdout, stderr = cli_in_process(*cli, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tmp_path / "cache"})
+    proc = subprocess.CompletedProcess(cli, code, stdout, stderr)
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert len(proc.stderr.strip().splitlines()) == 1, proc.stderr[-2000:]
     expected = "run is missing" if case == "eval without run=" else "checkpoints/best.ckpt cannot be read"
@@ -212,20 +240,17 @@ def test_a_refused_evaluation_or_init_from_is_one_line_and_leaves_no_directory(t
     assert not out.exists() and not (tmp_path / "outputs").exists()
 
 
-def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run):
+def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run, cli_in_process):
     """hybrid-sysid-eval's preflight refuses, before Hydra writes .hydra/, a directory that holds a completed run
     of other overrides; the run's saved config and record stay as they were."""
+    # in this process (the command's main()): the refusal comes before any work, and before Hydra writes anything
+    from hybrid_sysid.cli.evaluate import main as evaluate
+
     saved = {p: p.read_bytes() for p in (reference_run / ".hydra").iterdir()}
     rec = (reference_run / "metrics.json").read_bytes()
-    cli = [
-        sys.executable,
-        "-m",
-        "hybrid_sysid.cli.evaluate",
-        f"run={reference_run}",
-        "car=soft_seat",
-        f"hydra.run.dir={reference_run}",
-    ]
-    proc = subprocess.run(cli, cwd=tmp_path, env=env_for(tmp_path), capture_output=True, text=True, timeout=600)
+    cli = [evaluate, f"run={reference_run}", "car=soft_seat", f"hydra.run.dir={reference_run}"]
+    code, out, err = cli_in_process(*cli, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tmp_path / "cache"})
+    proc = subprocess.CompletedProcess(cli, code, out, err)
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert "holds a completed run of other overrides" in proc.stderr and len(proc.stderr.splitlines()) == 1
     assert {p: p.read_bytes() for p in (reference_run / ".hydra").iterdir()} == saved
@@ -233,6 +258,7 @@ def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run
 
 
 def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, reference_run):
+    # a real process: a signal to it and its exit status; its cache stays its own and empty (see below)
     out = tmp_path / "eval"
     # the default data: simulating it (an empty cache) outlasts the signal's way there
     cli = [
@@ -267,10 +293,11 @@ def sweep_statuses(sw):
 @pytest.mark.parametrize(
     "launcher, how", [pytest.param("basic", signal.SIGTERM, marks=pytest.mark.slow), ("joblib", signal.SIGINT)]
 )
-def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how):
+def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how, tiny_cache):
+    # real processes: a signal to the sweep's parent, which passes it on to its workers, and its exit status
     sw = tmp_path / "sw"
     args = ["-m", f"launcher={launcher}", "seed=0,1,2", *TINY, f"hydra.sweep.dir={sw}"]
-    proc = launch(tmp_path, *args)
+    proc = launch(tmp_path, *args, cache=tiny_cache)
     deadline = time.time() + 600
     while not any(sw.glob("*/metrics.json")) and proc.poll() is None and time.time() < deadline:
         time.sleep(0.05)
@@ -284,13 +311,14 @@ def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path
     assert "interrupted" in (sw / "summary.md").read_text()
     done = {run: (sw / run / "metrics.json").read_bytes() for run, s in statuses.items() if s == "completed"}
 
-    again = run_app(tmp_path, *args)
+    again = run_app(tmp_path, *args, cache=tiny_cache)
     assert again.returncode == 0, again.stderr[-3000:]
     assert set(sweep_statuses(sw).values()) == {"completed"} and len(sweep_statuses(sw)) == 3
     assert all((sw / run / "metrics.json").read_bytes() == b for run, b in done.items())  # not trained again
 
 
-def test_a_full_disk_ends_with_a_record_or_one_line(tmp_path):
+def test_a_full_disk_ends_with_a_record_or_one_line(tmp_path, tiny_cache):
+    # a real process: what it prints and its exit status when its own files cannot be written
     if os.geteuid() != 0:
         pytest.skip("mounting a small filesystem needs root; without it the run dir cannot be made to fill up")
     mnt = tmp_path / "small"
@@ -298,7 +326,7 @@ def test_a_full_disk_ends_with_a_record_or_one_line(tmp_path):
     if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=192k", "tmpfs", str(mnt)]).returncode:
         pytest.skip("this platform does not allow mounting a tmpfs")
     try:
-        proc = run_app(tmp_path, *TINY, f"hydra.run.dir={mnt / 'run'}")
+        proc = run_app(tmp_path, *TINY, f"hydra.run.dir={mnt / 'run'}", cache=tiny_cache)
         assert proc.returncode != 0
         stored = (mnt / "run" / "metrics.json").exists()
         if stored:
@@ -328,9 +356,14 @@ def refused(proc, *words):
         (["hydra.run.dir=a_file/run"], ["hydra.run.dir", "cannot be created"]),
     ],
 )
-def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words):
+def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words, cli_in_process):
+    # the command's main() in this process: each refusal ends before any work; a refusal in a real process, one
+    # line and exit 2 as the shell sees them: tests/test_config.py::test_cli_prints_one_line_and_exits_2_before_...
+    from hybrid_sysid.cli.train import main
+
     (tmp_path / "a_file").write_text("not a directory")
-    proc = run_app(tmp_path, *TINY, *args)
+    code, out, err = cli_in_process(main, *TINY, *args, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tmp_path / "cache"})
+    proc = subprocess.CompletedProcess(args, code, out, err)
     if "Could not find" in words[0]:  # Hydra's own composition error: several lines, no traceback, exit 2
         assert proc.returncode == 2 and words[0] in proc.stderr and "Traceback" not in proc.stderr
     else:

@@ -86,10 +86,11 @@ def test_only_a_started_worker_watches_its_parent_and_only_once():
 
 @pytest.mark.integration
 @pytest.mark.faults
-def test_a_killed_sweeps_workers_record_the_interruption_and_exit(tmp_path):
+def test_a_killed_sweeps_workers_record_the_interruption_and_exit(tmp_path, tiny_cache):
+    # real processes: a sweep's parent killed, its workers left orphaned
     sw = tmp_path / "sw"
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    env["HYBRID_SYSID_CACHE"] = str(tmp_path / "cache")
+    env["HYBRID_SYSID_CACHE"] = str(tiny_cache)  # data=tiny, simulated once for the test run
     # a file, not a pipe: the workers outlive the parent and would block on a pipe nobody reads
     with open(tmp_path / "out.txt", "w") as out:
         proc = subprocess.Popen(

@@ -1,11 +1,9 @@
 """A run directory is data, not code: a config whose _target_ names anything but this package's classes (or
 Lightning's loggers) is refused in one line, by every command that reads a run, before the target is imported."""
 
-import os
 import pickle
 import shutil
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
@@ -63,15 +61,17 @@ def test_load_estimator_refuses_a_planted_target_and_runs_nothing(tiny_run, tmp_
     assert not marker.exists()
 
 
-@pytest.mark.integration
 @pytest.mark.parametrize("case", [0, pytest.param(1, marks=pytest.mark.slow)], ids=["read_pickle", "numpy.save"])
-def test_evaluation_refuses_a_planted_target_before_anything_runs(tiny_run, tmp_path, case):
+def test_evaluation_refuses_a_planted_target_before_anything_runs(tiny_run, tmp_path, case, cli_in_process):
+    # the command's main() in this process, without HYDRA_FULL_ERROR (the user's view: no traceback); an evaluation
+    # refused in a real process: tests/test_transfer.py::test_eval_cli_sweeps_cars_and_refuses_another_objective
+    from hybrid_sysid.cli.evaluate import main as evaluate
+
     key, node, marker = payloads(tmp_path)[case]
     run = planted(tiny_run, tmp_path, key, node)
     out = tmp_path / "eval"
-    cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"run={run}", "car=soft_seat", f"hydra.run.dir={out}"]
-    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # the user's view: no traceback
-    proc = subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    cli = [evaluate, f"run={run}", "car=soft_seat", f"hydra.run.dir={out}"]
+    proc = subprocess.CompletedProcess(cli, *cli_in_process(*cli, cwd=tmp_path))
     assert proc.returncode == 2, proc.stderr[-2000:]
     assert f"{key}._target_" in proc.stderr and "is not allowed" in proc.stderr
     assert len(proc.stderr.strip().splitlines()) == 1

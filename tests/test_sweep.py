@@ -20,8 +20,10 @@ TINY = [
 ]
 
 
-def run_app(tmp_path, *args):
-    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
+def run_app(tmp_path, *args, cache=None):
+    """The app in a new process, as a user starts a sweep; ``cache``: the shared tiny_cache (the jobs then read
+    data=tiny instead of simulating it), else an empty one of the test's own."""
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
     return subprocess.run(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,
@@ -33,9 +35,12 @@ def run_app(tmp_path, *args):
 
 
 @pytest.fixture(scope="module")
-def sweep(tmp_path_factory):
+def sweep(tmp_path_factory, tiny_cache):
+    """One sweep, as a user launches it (a new process: Hydra's multirun, its callbacks and exit status), which
+    the three tests below read."""
     tmp = tmp_path_factory.mktemp("sweep")
-    proc = run_app(tmp, "-m", "objective=labelled,hybrid", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp / 'sw'}")
+    args = ["-m", "objective=labelled,hybrid", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp / 'sw'}"]
+    proc = run_app(tmp, *args, cache=tiny_cache)
     return proc, tmp / "sw"
 
 
@@ -83,22 +88,24 @@ def test_markdown_table_is_mean_and_spread_over_seeds(sweep):
     assert (sw / "figures" / "robustness.png").stat().st_size > 10_000
 
 
-def test_report_rebuilds_the_same_table(sweep, tmp_path):
+def test_report_rebuilds_the_same_table(sweep, tmp_path, monkeypatch):
+    import runpy
+
     _, sw = sweep
     out = tmp_path / "report"
-    proc = subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid.report", str(sw), "--out", str(out)],
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
-    assert proc.returncode == 0, proc.stderr
+    # `python -m hybrid_sysid.report`, run in this process: its module, arguments and exit status, not a new process
+    monkeypatch.setattr(sys, "argv", ["python -m hybrid_sysid.report", str(sw), f"out={out}"])
+    with pytest.raises(SystemExit) as done:
+        runpy.run_module("hybrid_sysid.report", run_name="__main__", alter_sys=True)
+    assert done.value.code == 0
     assert (out / "summary.md").read_text().split("\n\n")[1:] == (sw / "summary.md").read_text().split("\n\n")[1:]
     pd.testing.assert_frame_equal(pd.read_csv(out / "summary.csv"), pd.read_csv(sw / "summary.csv"))
 
 
-def test_a_failing_job_is_a_row_and_the_sweep_exits_nonzero(tmp_path):
-    proc = run_app(tmp_path, "-m", "model.optim.lr=0.003,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}")
+def test_a_failing_job_is_a_row_and_the_sweep_exits_nonzero(tmp_path, tiny_cache):
+    # a new process: the sweep's exit status and what it prints
+    args = ["-m", "model.optim.lr=0.003,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}"]
+    proc = run_app(tmp_path, *args, cache=tiny_cache)
     assert proc.returncode != 0
     summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
     failed = summary[summary.status == "failed"]

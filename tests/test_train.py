@@ -85,12 +85,13 @@ def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_p
 
 
 @pytest.mark.integration
-def test_a_nan_loss_stops_the_run_and_records_why(tmp_path):
+def test_a_nan_loss_stops_the_run_and_records_why(tmp_path, tiny_cache):
+    # a new process: the app records the failure of its job and exits non-zero
     import os
     import subprocess
     import sys
 
-    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tmp_path / "cache")}
+    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tiny_cache)}  # data=tiny, simulated once for the test run
     proc = subprocess.run(
         [
             sys.executable,
@@ -177,8 +178,8 @@ def test_test_errors_per_road_class_recombine_into_the_whole_split(tiny_run):
 
 
 def test_a_stop_swallowed_during_the_work_ends_the_run_at_its_next_safe_point(make_cfg, tmp_path):
-    """A signal handler's exception can be swallowed where it lands (a finaliser, a library's broad handler); the
-    stop it requested still ends the run before it scores its model, and no completed record is written."""
+    """A job's signal handler only requests a stop (hybrid_sysid.core.stop); a stop requested before the work
+    ends the run at its first safe point, and no completed record is written."""
     import signal
 
     from hybrid_sysid.core import stop

@@ -89,8 +89,9 @@ def test_the_spread_widens_the_networks_bounds(make_cfg):
 
 
 @pytest.fixture(scope="module")
-def source(tmp_path_factory):
-    """A tiny labelled run on the paper's car, with its config saved as the app saves it."""
+def source(tmp_path_factory, tiny_cache):
+    """A tiny labelled run on the paper's car, with its config saved as the app saves it. Its data.cache_dir, the
+    shared tiny_cache, holds data=tiny on both cars, so an evaluation of it (in process or not) simulates nothing."""
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
@@ -101,7 +102,7 @@ def source(tmp_path_factory):
             config_name="config",
             overrides=[
                 *TINY,
-                f"data.cache_dir={tmp / 'cache'}",
+                f"data.cache_dir={tiny_cache}",
                 "trainer.progress_bar=false",
                 "evaluation.windows=[1,4]",
             ],
@@ -213,6 +214,7 @@ def test_the_transfer_plan(make_cfg, tmp_path):
 
 @pytest.mark.integration
 def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path):
+    # new processes: the command's exit statuses, and what a user sees of a refusal (one line, no traceback)
     _, _, run_dir = source
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     cli = [sys.executable, "-c", "from hybrid_sysid.cli.evaluate import main; main()"]

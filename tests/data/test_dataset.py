@@ -134,6 +134,7 @@ print(float(ds.seat_acc.sum()))
 
 @pytest.mark.integration
 def test_concurrent_jobs_generate_a_dataset_once(tmp_path):
+    # real processes: two at once, sharing an empty cache through its file lock
     import subprocess
     import sys
 
