@@ -83,7 +83,7 @@ TERMINATED = textwrap.dedent("""
 """)
 
 
-def command(tmp_path, name, *args, script=None) -> list[str]:
+def command(tmp_path, name, *args, script=None, cache=None) -> list[str]:
     app = [sys.executable, str(script)] if script else [sys.executable, "-m", "hybrid_sysid"]
     sweep = tmp_path / name
     return [
@@ -91,7 +91,7 @@ def command(tmp_path, name, *args, script=None) -> list[str]:
         "hparams_search=fast_cnn",
         *TINY,
         f"hydra.sweep.dir={sweep}",
-        f"data.cache_dir={tmp_path / 'cache'}",
+        f"data.cache_dir={cache or tmp_path / 'cache'}",
         *args,
     ]
 
@@ -103,14 +103,15 @@ def results(sweep):
     return study, records
 
 
-def search(tmp_path, name, *args, script=None, status=0):
+def search(tmp_path, name, *args, script=None, status=0, cache=None):
     env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
-    cli = command(tmp_path, name, *args, script=script)
+    cli = command(tmp_path, name, *args, script=script, cache=cache)
     proc = subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
     assert proc.returncode == status, proc.stderr[-3000:]
     return tmp_path / name, *results(tmp_path / name)
 
 
+@pytest.mark.slow  # by default: a failed trial's tell in process (test_search_space.py), values against records below
 def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_failed_trial(tmp_path):
     script = tmp_path / "failing.py"
     script.write_text(FAILING)
@@ -131,29 +132,30 @@ def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_faile
     assert "a failing trial" in summary
 
 
-def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(tmp_path):
+def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(tmp_path, tiny_cache):
     # a fresh process: the signal, its exit status and the stored study are what is tested
     longer = ["trainer.max_steps=40", "trainer.eval_every_n_steps=10", "hydra.sweeper.sampler.n_startup_trials=1"]
-    whole, study, records = search(tmp_path, "whole", *longer)
+    whole, study, records = search(tmp_path, "whole", *longer, cache=tiny_cache)
     assert [t.state.name for t in study.trials] == ["COMPLETE"] * 3
 
     # the same search, with a SIGTERM to its process at trial 1's 5th step (trial 0 random, 1 and 2 from TPE)
     script = tmp_path / "terminated.py"
     script.write_text(TERMINATED)
-    search_proc = subprocess.run(
-        command(tmp_path, "cut", *longer, script=script), cwd=tmp_path, capture_output=True, text=True, timeout=900
-    )
+    cut_cli = command(tmp_path, "cut", *longer, script=script, cache=tiny_cache)
+    search_proc = subprocess.run(cut_cli, cwd=tmp_path, capture_output=True, text=True, timeout=900)
     assert search_proc.returncode == 128 + signal.SIGTERM, search_proc.stderr[-3000:]
     cut = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{tmp_path / 'cut' / 'study.db'}")
     assert [t.state.name for t in cut.trials] == ["COMPLETE", "RUNNING"]  # trial 1 left for the re-run
     assert json.loads((tmp_path / "cut" / "1" / "metrics.json").read_text())["status"] == "interrupted"
 
-    again, resumed, resumed_records = search(tmp_path, "cut", *longer)  # the same command again: exit 0
+    # the same command again: exit 0
+    again, resumed, resumed_records = search(tmp_path, "cut", *longer, cache=tiny_cache)
     assert [t.number for t in resumed.trials] == [0, 1, 2]
     assert [t.params for t in resumed.trials] == [t.params for t in study.trials]
     assert [t.value for t in resumed.trials] == [t.value for t in study.trials]  # identical, not close
-    for a, b, trial_dir in zip(records, resumed_records, sorted(again.glob("[0-9]"))):
+    for trial, a, b, trial_dir in zip(study.trials, records, resumed_records, sorted(again.glob("[0-9]"))):
         assert b["status"] == "completed" and a["results"] == b["results"]
+        assert trial.value == b["best_score"] and b["monitor"] == "val/rel_dev"  # its model-selection figure
         # each trial's directory holds the config of the run it recorded
         assert yaml.safe_load((trial_dir / ".hydra" / "overrides.yaml").read_text()) == b["overrides"]
     best = yaml.safe_load((again / "optimization_results.yaml").read_text())

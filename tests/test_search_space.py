@@ -77,3 +77,35 @@ def test_a_stored_study_of_another_search_is_refused_in_one_line(make_cfg, tmp_p
         err = capsys.readouterr().err.strip()
         assert exit_.value.code == 2 and err.startswith("error: hydra.sweeper.storage holds study 's'") and what in err
         assert "\n" not in err
+
+
+def test_each_jobs_record_becomes_its_trials_state():
+    """A job's value is its record's best_score; a failed job, a job without that figure or one whose exception
+    escaped is a failed trial, and the study goes on; an interrupted job's trial stays running, for the re-run."""
+    from hybrid_sysid.cli.search import _tell
+
+    class Ret:
+        def __init__(self, record=None, raises=None):
+            self.record, self.raises = record, raises
+
+        @property
+        def return_value(self):
+            if self.raises:
+                raise self.raises
+            return self.record
+
+    returns = [
+        Ret({"status": "completed", "best_score": 0.25}),
+        Ret({"status": "failed", "error": "RuntimeError: a failing trial"}),
+        Ret({"status": "completed", "best_score": None}),
+        Ret({"status": "completed", "best_score": float("nan")}),
+        Ret(raises=RuntimeError("escaped")),
+        Ret({"status": "interrupted", "error": "interrupted by SIGTERM"}),
+    ]
+    study = optuna.create_study()
+    for number, ret in enumerate(returns):
+        study.ask({"x": optuna.distributions.FloatDistribution(0, 1)})
+        _tell(study, number, ret)
+    states = [t.state.name for t in study.trials]
+    assert states == ["COMPLETE", "FAIL", "FAIL", "FAIL", "FAIL", "RUNNING"]
+    assert study.trials[0].value == 0.25

@@ -276,6 +276,7 @@ def test_tensorboard_hparams_hold_the_hyperparameters_and_final_metrics(make_cfg
         assert scalars[tag] == pytest.approx([value])
 
 
+@pytest.mark.slow  # end to end; by default names, tags, artifacts, sweep run and hparams are checked in process
 def test_a_tracked_sweep_as_a_user_runs_it(tmp_path, tiny_cache):
     """A 2-job sweep in a new process with both trackers: names, figures, the summary run, and no warning."""
     pytest.importorskip("mlflow", reason='needs the loggers extra: pip install -e ".[loggers]"')

@@ -119,7 +119,7 @@ def test_a_hybrid_search_never_reads_labels_and_a_rerun_trains_nothing(hybrid_jo
 
 
 @pytest.mark.integration
-def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
+def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path, tiny_cache):
     sweep = tmp_path / "sweep"
     cli = [
         sys.executable,
@@ -130,7 +130,7 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path):
         "objective=hybrid",
         "trainer.progress_bar=false",
         f"hydra.sweep.dir={sweep}",
-        f"data.cache_dir={tmp_path / 'cache'}",
+        f"data.cache_dir={tiny_cache}",  # the test run's shared dataset: no simulation in the subprocess
     ]
     proc = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr[-3000:]
