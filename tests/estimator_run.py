@@ -50,3 +50,16 @@ def recordings(n, n_steps, dt, seed=7, speed=15.0):
     road = road_profiles(("ABCDE" * n)[:n], n_steps, dt, speed, rng=seed)
     seat, body = simulate(road, m3, dt, measurement="consistent")
     return seat, body, np.stack([C3 / m3, K3 / m3], axis=1)
+
+
+def predict(capsys, *argv):
+    """hybrid-sysid-predict's main(argv) in process: (exit status, stdout, stderr)."""
+    from hybrid_sysid.cli.predict import main
+
+    try:
+        main(list(argv))
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    return code, out.out, out.err

@@ -18,7 +18,13 @@ from hybrid_sysid.inference.estimator import EstimateWarning, Estimator, InputEr
 from hybrid_sysid.model.networks import FastCNN
 from hybrid_sysid.physics import road_profiles, simulate
 
-from estimator_run import C3, K3, TINY, recordings  # the trained run's fixtures, tiny_run and est, come with it
+from estimator_run import (  # the trained run's fixtures, tiny_run and est, come with it
+    C3,
+    K3,
+    TINY,
+    predict,
+    recordings,
+)
 
 M3_MIN, M3_MAX = 50.0, 200.0  # data=tiny's seat masses (data/default.yaml)
 P_MIN, P_MAX = np.array([C3, K3]) / M3_MAX, np.array([C3, K3]) / M3_MIN
@@ -168,18 +174,6 @@ def test_a_baseline_run_refuses_a_planted_target(baseline_runs, tmp_path):
         load_estimator(run)
 
 
-def predict_cli(capsys, *argv):
-    from hybrid_sysid.cli.predict import main
-
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
-
-
 def test_the_command_prints_the_flag_column_and_one_warning_per_kind(tiny_run, est, tmp_path, capsys):
     """A copy of the run whose record says 41% error at K = 8 (the command's K); three recordings: plain
     (100 kg), swapped (100 kg), heavy (1000 kg). The table's flag column marks each; stderr holds one line per
@@ -193,7 +187,7 @@ def test_the_command_prints_the_flag_column_and_one_warning_per_kind(tiny_run, e
     names = ["plain", "swapped", "heavy"]
     frames = [pd.DataFrame({"recording": m, "seat_acc": s, "body_acc": b}) for m, s, b in zip(names, seat, body)]
     pd.concat(frames).to_csv(tmp_path / "rec.csv", index=False)
-    code, out, err = predict_cli(capsys, f"run={run}", f"input={tmp_path / 'rec.csv'}", f"dt={est.dt}")
+    code, out, err = predict(capsys, f"run={run}", f"input={tmp_path / 'rec.csv'}", f"dt={est.dt}")
     assert code == 0, err
     assert out.splitlines()[0].split()[-1] == "flag"
     table = pd.read_csv(io.StringIO(out), sep=r"\s+")
@@ -213,7 +207,7 @@ def test_the_command_estimates_with_a_baseline_run(baseline_runs, tmp_path, caps
     seat, body, p = recordings(3, 500, 0.005, seed=8)
     np.savez(tmp_path / "rec.npz", seat_acc=seat, body_acc=body, dt=0.005)
     out = tmp_path / "out.csv"
-    code, _, err = predict_cli(
+    code, _, err = predict(
         capsys, f"run={baseline_runs['ls_bandpass']}", f"input={tmp_path / 'rec.npz'}", f"output={out}"
     )
     assert code == 0 and err == "", err

@@ -14,7 +14,7 @@ import pytest
 
 from hybrid_sysid.cli.predict import main
 
-from estimator_run import recordings  # one trained run (fixtures tiny_run, est) serves both files
+from estimator_run import predict, recordings  # one trained run (fixtures tiny_run, est) serves both files
 
 PARAMS = ["p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
 
@@ -30,17 +30,6 @@ def write_csv(path, seat, body, dt, names=None, time=True):
         frames.append(f)
     pd.concat(frames).to_csv(path, index=False)
     return path
-
-
-def predict(capsys, *argv):
-    """main(argv) in process: (exit status, stdout, stderr)."""
-    try:
-        main(list(argv))
-        code = 0
-    except SystemExit as exc:
-        code = exc.code
-    out = capsys.readouterr()
-    return code, out.out, out.err
 
 
 @pytest.mark.integration

@@ -93,8 +93,14 @@ def _record(run: RunDir) -> dict | None:
 def _baseline(cfg: DictConfig, run: RunDir) -> LeastSquaresFit:
     """The run's least-squares fit, built as the run built it (build_baseline: a _target_ outside the package's
     allow-list is refused before anything is imported)."""
+    return _built(build_baseline, cfg, run)
+
+
+def _built(builder, cfg: DictConfig, run: RunDir):
+    """``builder(cfg)`` (the training code's own builders, which refuse a _target_ outside the package's allow-list),
+    its failures as one InputError naming the run."""
     try:
-        return build_baseline(cfg)
+        return builder(cfg)
     except ConfigError as exc:
         raise InputError(f"run = {run.path}: {exc}") from None
     except Exception as exc:  # noqa: BLE001 - a config that parses but lacks or mistypes keys
@@ -121,14 +127,7 @@ def _checkpoint_path(run: RunDir, checkpoint) -> Path:
 def _network(cfg: DictConfig, path: Path, run: RunDir) -> torch.nn.Module:
     """The run's network with the checkpoint's weights, built by the code that trained it. The only call into
     the training code: if build_model gains arguments, this is the line to change."""
-    try:  # first: a class the config names is checked against this package's before anything is imported
-        model = build_model(cfg)
-    except ConfigError as exc:
-        raise InputError(f"run = {run.path}: {exc}") from None
-    except Exception as exc:  # noqa: BLE001 - a config that parses but lacks or mistypes keys
-        raise InputError(
-            f"run = {run.path}: its {CONFIG} is damaged ({type(exc).__name__}: {' '.join(str(exc).split())})"
-        ) from None
+    model = _built(build_model, cfg, run)  # a class the config names is checked before anything is imported
     try:
         state = torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
     except Exception as exc:  # noqa: BLE001 - torch raises several classes for a truncated or foreign file

@@ -13,7 +13,7 @@ learning-curve rows, the final results, and (docs/usage.md#experiment-trackers):
   checkpoints only with ``logger.mlflow.log_model=true``). The sweep's summary table and figures go to one more
   run of the experiment, ``sweep summary`` (:func:`log_sweep`), and the table also to the experiment's
   description.
-- TensorBoard: the HPARAMS tab's session (:func:`session_hparams` with the final test metrics).
+- TensorBoard: the HPARAMS tab's table (:func:`hparams_values` with the final test metrics).
 
 Nothing here fails a run that has written its record: a tracker's artifact or tag that cannot be written is a
 warning.
@@ -194,7 +194,7 @@ def _sweep_tags(preset: str | None, sweep_dir: Path | None) -> dict[str, str]:
     return tags
 
 
-def session_hparams(cfg: DictConfig, naming: Naming) -> dict[str, Any]:
+def hparams_values(cfg: DictConfig, naming: Naming) -> dict[str, Any]:
     """The hyperparameters of TensorBoard's HPARAMS table: the config groups chosen (objective, model, data,
     ...), the seed, learning rate, batch size, training noise and steps, and every key the sweep varies."""
     out: dict[str, Any] = {"objective": _objective(cfg, naming.choices)}
@@ -330,7 +330,7 @@ def result_metrics(results: Iterable[dict]) -> dict[str, float]:
     )
 
 
-def session_metrics(metrics: dict[str, float]) -> dict[str, float]:
+def hparams_metrics(metrics: dict[str, float]) -> dict[str, float]:
     """The HPARAMS table's metrics: the test split's mean relative deviations, per noise level, K and parameter."""
     return {k: v for k, v in metrics.items() if k.startswith("final/test/") and k.endswith("_mean_rel_dev")}
 
@@ -341,7 +341,7 @@ def log_metrics(loggers: Sequence, metrics: dict[str, float], step: int) -> None
 
 
 def finish(loggers: Sequence, results: Iterable[dict], step: int, status: str = "success") -> None:
-    """Log the final results (TensorBoard: and the HPARAMS session; MLflow: and the run's files) and close every
+    """Log the final results (TensorBoard: and the HPARAMS table; MLflow: and the run's files) and close every
     logger."""
     metrics = result_metrics(results)
     cfg, naming, run_dir = (getattr(loggers, a, None) for a in ("cfg", "naming", "run_dir"))
@@ -350,7 +350,7 @@ def finish(loggers: Sequence, results: Iterable[dict], step: int, status: str = 
         kind = type(logger).__name__
         if cfg is not None and kind == "TensorBoardLogger":
             varied = [_key(o) for o in naming.varied]
-            _guarded("the hparams session", _write_session, logger, session_hparams(cfg, naming), metrics, varied)
+            _guarded("the hparams table", _write_hparams, logger, hparams_values(cfg, naming), metrics, varied)
         if run_dir is not None and kind == "MLFlowLogger":
             _guarded("the run's artifacts", _log_run_files, logger.experiment, logger.run_id, run_dir)
         logger.save()
@@ -366,17 +366,17 @@ def _guarded(what: str, fn, *args) -> None:
         log.warning("%s not written to the tracker: %s: %s", what, type(exc).__name__, exc)
 
 
-def _write_session(logger, params: dict, metrics: dict[str, float], varied: Iterable[str] = ()) -> None:
-    """The HPARAMS tab's data (the experiment, this session's hyperparameters, its end), written as Lightning's
+def _write_hparams(logger, params: dict, metrics: dict[str, float], varied: Iterable[str] = ()) -> None:
+    """The HPARAMS tab's data (the experiment, this run's hyperparameters, its end), written as Lightning's
     log_hyperparams would with metrics, but naming the final metrics already logged instead of logging new ones.
-    The keys in ``varied`` are marked as differing between the sessions: the tab shows them first (it shows 5
+    The keys in ``varied`` are marked as differing between the runs: the tab shows them first (it shows 5
     hyperparameters until more are ticked)."""
     try:
         from torch.utils.tensorboard.summary import hparams
     except ImportError:  # Lightning writes with tensorboardX when tensorboard is absent
         from tensorboardX.summary import hparams
 
-    experiment, start, end = hparams(params, session_metrics(metrics))
+    experiment, start, end = hparams(params, hparams_metrics(metrics))
     _mark_differing(experiment, set(varied))
     writer = logger.experiment._get_file_writer()
     for summary in (experiment, start, end):
