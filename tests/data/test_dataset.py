@@ -55,6 +55,36 @@ def test_split_by_road_never_shares_a_road():
     assert not road(split.train) & road(split.test) and not road(split.val) & road(split.test)
 
 
+@pytest.mark.parametrize("data", ["default", "paper"])
+def test_every_road_class_is_in_every_split(data):
+    """data=default (40 roads) and data=paper (100 roads): the classes the simulator draws (its dataset's
+    road_class array, not the spec's helper) are each in train, validation and test, no road is in two splits,
+    and the sizes stay the position split's: 80% of the roads train or validate (the paper's 80 / 20)."""
+    n_roads, n_masses = (40, 50) if data == "default" else (100, 100)
+    spec = DatasetSpec(n_roads=n_roads, n_masses=n_masses, n_steps=20)  # the classes do not depend on the steps
+    ds = generate_dataset(spec)
+    split = QuarterCarDataModule(spec, window=10).split
+    parts = {name: getattr(split, name) for name in ("train", "val", "test")}
+    for name, rows in parts.items():
+        assert set(ds.road_class[rows]) == set("ABCDE"), name
+        assert len(rows) % n_masses == 0 and set(np.bincount(ds.road_id[rows])) <= {0, n_masses}  # whole roads
+    roads = {name: set(ds.road_id[rows]) for name, rows in parts.items()}
+    assert not roads["train"] & roads["val"] and not roads["train"] & roads["test"] and not roads["val"] & roads["test"]
+    assert len(roads["train"] | roads["val"]) == round(0.8 * n_roads)
+    assert sorted(roads["train"] | roads["val"] | roads["test"]) == list(range(n_roads))
+    counts = np.unique(ds.road_class[::n_masses], return_counts=True)[1]
+    assert counts.max() - counts.min() <= 1  # every class on an equal share of the roads
+
+
+def test_a_class_too_small_for_every_split_falls_back_to_the_split_by_position():
+    """Six roads of five classes: one class has two roads, the others one, so no split can hold every class."""
+    classes = np.array(list("ABCDEA"))
+    by_class, by_position = split_by_road(6, 2, 0.8, 0.25, classes), split_by_road(6, 2, 0.8, 0.25)
+    for name in ("train", "val", "test"):
+        np.testing.assert_array_equal(getattr(by_class, name), getattr(by_position, name))
+    assert set(by_position.test // 2) == {5}  # the last road tests
+
+
 def test_cache_loads_instead_of_simulating(tmp_path, monkeypatch, small):
     first = get_dataset(SMALL, tmp_path)
     files = list(tmp_path.glob("qcm-*.npz"))

@@ -10,7 +10,7 @@ from torch.utils.data import DataLoader
 from hybrid_sysid.data.cache import get_dataset
 from hybrid_sysid.data.dataset import SimulatedDataset
 from hybrid_sysid.data.spec import DatasetSpec, WindowSettings, check_eval_windows
-from hybrid_sysid.data.splits import SPLITS, split_by_road
+from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.data.windows import RandomWindows, WindowCutter, start_state
 from hybrid_sysid.physics import integrate
 
@@ -53,7 +53,7 @@ class QuarterCarDataModule(L.LightningDataModule):
             raise ValueError(f"model.batch_size = {batch_size} is not allowed: must be >= 1")
         if not train_std >= 0:
             raise ValueError(f"noise std {train_std} is not allowed: noise.train_std must be >= 0")
-        self.split = split_by_road(spec.n_roads, spec.n_masses, train_fraction, val_fraction)
+        self.split = self.settings.split(spec)
         self.spec, self.cache_dir, self.window = spec, cache_dir, window
         self.batch_size, self.eval_batch_size = batch_size, eval_batch_size
         self.train_std, self.seed = float(train_std), seed

@@ -1,7 +1,7 @@
 """Dataset generation (sec. 2.3): every mass on every road, simulated into float32 channels.
 
-Recordings are stored road-major (recording = road * n_masses + mass index), so a split by road is a
-contiguous range of recordings and no test road is ever seen in training. The on-disk cache is
+Recordings are stored road-major (recording = road * n_masses + mass index): a split by road (data.splits) takes
+whole roads, so no test road is ever seen in training. The on-disk cache is
 hybrid_sysid.data.cache.
 """
 
@@ -59,7 +59,7 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
     """
     spec.validate()
     rng = np.random.default_rng(spec.seed)
-    classes = rng.choice(list(spec.road_classes), size=spec.n_roads)
+    classes = spec.road_class(rng)
     masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float).ravel()
     road_id = np.repeat(np.arange(spec.n_roads), spec.n_masses)
     if spec.measurement in STEPPED:

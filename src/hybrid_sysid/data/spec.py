@@ -11,14 +11,17 @@ import json
 import math
 from dataclasses import asdict, dataclass, field, fields
 
+import numpy as np
+
 from hybrid_sysid.core.checks import ConfigError, check_choice
 from hybrid_sysid.core.options import AMPLITUDES, INTEGRATIONS
-from hybrid_sysid.data.splits import split_by_road
+from hybrid_sysid.data.splits import Split, split_by_road
 from hybrid_sysid.physics import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED, QuarterCar, stable_dt_limit
 from hybrid_sysid.physics.road import OMEGA_M
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
-SIMULATOR_VERSION = 3  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording
+SIMULATOR_VERSION = 4  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording;
+# 4: every class on an equal share of the roads (the split per class), the continuous re-integration's gain corrected
 # DatasetSpec's fields that live outside the config's data section: road.classes and the car group
 OUTSIDE_DATA = {"road_classes", "car"}
 # the samples a band-pass must leave of each window (objective.filter, the least-squares baselines)
@@ -108,6 +111,14 @@ class DatasetSpec:
         payload["simulator_version"] = SIMULATOR_VERSION
         return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
 
+    def road_class(self, rng=None) -> np.ndarray:
+        """The class letter of every road: each class of road.classes on an equal share of the roads (as near as
+        n_roads allows), in random order, so that a split per class can put every class in every split. The
+        dataset's first draw from its generator (``rng``, default a fresh one from data.seed), so a split knows
+        the classes without simulating."""
+        rng = np.random.default_rng(self.seed) if rng is None else rng
+        return rng.permutation(np.resize(np.array(self.road_classes), self.n_roads))
+
     @classmethod
     def from_config(cls, cfg) -> "DatasetSpec":
         """The spec of a composed config: its data section's keys of the same names, road.classes, the car."""
@@ -135,8 +146,12 @@ class WindowSettings:
                 f"data.n_steps = {spec.n_steps}]{why}"
             )
         check_choice("data.integration", self.integration, INTEGRATIONS)
-        split_by_road(spec.n_roads, spec.n_masses, self.train_fraction, self.val_fraction)
+        self.split(spec)
         check_filter_fits(taps, self.window, "objective.filter.taps", "data.window")
+
+    def split(self, spec: DatasetSpec) -> Split:
+        """Train, validation and test recordings of the dataset: by road and per road class (data.splits)."""
+        return split_by_road(spec.n_roads, spec.n_masses, self.train_fraction, self.val_fraction, spec.road_class())
 
     def n_starts(self, spec: DatasetSpec) -> int:
         """How many window starts a recording offers."""

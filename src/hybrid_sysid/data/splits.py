@@ -1,4 +1,5 @@
-"""Which recordings train, validate and test: a split by road, so no test road is seen in training."""
+"""Which recordings train, validate and test: a split by road, so no test road is seen in training, and by road
+class, so every class of the data is in every split."""
 
 from __future__ import annotations
 
@@ -16,19 +17,29 @@ SPLITS = ("train", "val", "test")
 class Split:
     """Which roads go where: test roads never appear in train or val."""
 
-    train: np.ndarray  # recording indices
+    train: np.ndarray  # recording indices, ascending
     val: np.ndarray
     test: np.ndarray
 
 
-def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fraction: float) -> Split:
-    """The first roads train (the last of them validate), the rest test, as in the paper (80 / 20 roads)."""
+def _counts(n_roads: int, train_fraction: float, val_fraction: float) -> tuple[int, int]:
+    """(training + validation roads, validation roads) of ``n_roads``: the paper's 80 / 20 roads at 0.8."""
+    n_trainval = int(round(train_fraction * n_roads))
+    n_val = max(1, int(round(val_fraction * n_trainval))) if val_fraction > 0 else 0
+    return n_trainval, n_val
+
+
+def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fraction: float, road_class=None) -> Split:
+    """Test roads never train. ``road_class`` (the class letter of each road): the roads of each class are split
+    by the fractions on their own, so each class is in train, validation and test and a per-class table has every
+    class in every split (a split by position left data=default without a D road among its test roads). Without
+    it, or when a class has too few roads to be in all three, the first roads train (the last of them validate)
+    and the rest test, as in the paper (80 / 20 roads)."""
     if not 0.0 < train_fraction < 1.0:
         raise ConfigError(f"data.train_fraction = {train_fraction} is not allowed: must lie in (0, 1)")
     if not 0.0 <= val_fraction < 1.0:
         raise ConfigError(f"data.val_fraction = {val_fraction} is not allowed: must lie in [0, 1)")
-    n_trainval = int(round(train_fraction * n_roads))
-    n_val = max(1, int(round(val_fraction * n_trainval))) if val_fraction > 0 else 0
+    n_trainval, n_val = _counts(n_roads, train_fraction, val_fraction)
     n_train = n_trainval - n_val
     if n_train < 1 or n_trainval >= n_roads:
         raise ConfigError(
@@ -36,9 +47,43 @@ def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fracti
             f"data.val_fraction = {val_fraction}: need at least one training, one test"
             + (" and one validation road" if val_fraction > 0 else " road")
         )
+    roads = np.arange(n_roads)
+    if road_class is None:
+        groups = [roads]
+        trainval = [n_trainval]
+    else:
+        road_class = np.asarray(road_class)
+        if len(road_class) != n_roads:
+            raise ValueError(f"road_class has {len(road_class)} entries for {n_roads} roads")
+        _, first = np.unique(road_class, return_index=True)
+        groups = [roads[road_class == road_class[i]] for i in sorted(first)]
+        trainval = _per_class(np.array([len(g) for g in groups]), n_trainval)
+        need = 3 if val_fraction > 0 else 2
+        if min(len(g) for g in groups) < need:  # a class this small cannot be in every split
+            groups, trainval = [roads], [n_trainval]
+    parts: dict[str, list] = {s: [] for s in SPLITS}
+    for g, tv in zip(groups, trainval):
+        if len(groups) > 1:
+            tv = int(np.clip(tv, need - 1, len(g) - 1))
+        v = min(max(1, int(round(val_fraction * tv))), tv - 1) if val_fraction > 0 else 0
+        parts["train"].append(g[: tv - v])
+        parts["val"].append(g[tv - v : tv])
+        parts["test"].append(g[tv:])
 
-    def recordings(r0, r1):
-        return np.arange(r0 * n_masses, r1 * n_masses)
+    def recordings(split):
+        chosen = np.sort(np.concatenate(parts[split]))
+        return (chosen[:, None] * n_masses + np.arange(n_masses)).ravel()
 
-    val = recordings(n_train, n_trainval) if n_val else recordings(0, n_train)  # no val roads: val on train
-    return Split(train=recordings(0, n_train), val=val, test=recordings(n_trainval, n_roads))
+    train, test = recordings("train"), recordings("test")
+    val = recordings("val") if n_val else train  # no val roads: val on train
+    return Split(train=train, val=val, test=test)
+
+
+def _per_class(sizes: np.ndarray, total: int) -> np.ndarray:
+    """Training + validation roads of each class, in proportion to its size and adding up to ``total``: the
+    largest remainders get the roads that rounding leaves (ties to the class whose first road comes first)."""
+    quota = sizes * (total / sizes.sum())
+    base = np.floor(quota).astype(int)
+    extra = np.argsort(-(quota - base), kind="stable")[: total - base.sum()]
+    base[extra] += 1
+    return base
