@@ -14,7 +14,9 @@ hybrid-sysid experiment=ablations data.measurement=consistent noise.train_std=0.
 hybrid-sysid experiment=baselines hydra.sweep.dir=$out/baselines
 hybrid-sysid experiment=paper hydra.sweep.dir=$out/paper
 hybrid-sysid experiment=transfer hydra.sweep.dir=$out/transfer
-hybrid-sysid experiment=robustness data.seat_spread=0.3 hydra.sweep.dir=$out/robustness_spread
+hybrid-sysid experiment=field hydra.sweep.dir=$out/field
+hybrid-sysid experiment=robustness data.seat_spread=0.3 objective=labelled,hybrid,combined,hybrid_bandpass,label_free \
+  hydra.sweep.dir=$out/robustness_spread
 hybrid-sysid experiment=noise_robust hydra.sweep.dir=$out/noise_robust
 hybrid-sysid experiment=baselines data.measurement=paper hydra.sweep.dir=$out/baselines_paper
 hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01 \
@@ -25,5 +27,5 @@ hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01
   hydra.sweep.dir=$out/noise_robust_paper_hybrid
 hybrid-sysid experiment=tuned hydra.sweep.dir=$out/tuned   # pip install -e ".[search]"
 hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
-  $out/paper $out/transfer $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
+  $out/paper $out/transfer $out/field $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
   $out/tuned exclude='*/search/*' results=docs/results.md notes=docs/results_notes.md reproduction=true
