@@ -6,15 +6,17 @@ import pytest
 
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, start_state
-from hybrid_sysid.physics import integrate, relative_states
+from hybrid_sysid.data.splits import SPLITS
+from hybrid_sysid.physics import integrate, integrate_trapezoid, relative_states
 from hybrid_sysid.physics.filters import bandpass_taps, fir_valid
 
 SPEC = DatasetSpec(n_roads=6, n_masses=4, n_steps=600, seed=2)
+CONTINUOUS = DatasetSpec(n_roads=6, n_masses=4, n_steps=600, seed=2, measurement="continuous")
 FIR = bandpass_taps(4.0, 20.0, 151, SPEC.dt)
 
 
-def make(integration="t0", fir=FIR, **kw):
-    dm = QuarterCarDataModule(SPEC, window=300, batch_size=8, seed=0, integration=integration, fir=fir, **kw)
+def make(integration="t0", fir=FIR, spec=SPEC, **kw):
+    dm = QuarterCarDataModule(spec, window=300, batch_size=8, seed=0, integration=integration, fir=fir, **kw)
     dm.setup()
     return dm
 
@@ -29,6 +31,78 @@ def test_start_state_has_the_covariance_of_integrated_white_noise():
     got = start_state(np.full(n, s), dt, rng.standard_normal((n, 2)))
     np.testing.assert_allclose(np.cov(got.T), np.cov(want.T), rtol=0.05)
     assert not start_state(np.zeros(3, dtype=int), dt, np.ones((3, 2))).any()  # nothing before t0
+
+
+@pytest.mark.parametrize("s", [1, 2, 150])
+def test_trapezoid_start_state_has_the_covariance_of_integrated_white_noise(s):
+    """Reference: the trapezoid rule run over explicit noise up to the window's first sample (Monte Carlo,
+    40000 draws). Its states at s are the drawn (V, X) plus (dt / 2, dt^2 / 4) times the first sample's noise."""
+    dt, n = CONTINUOUS.dt, 40000
+    rng = np.random.default_rng(s)
+    noise = rng.standard_normal((n, 2, s + 1))
+    d = noise[:, 0] - noise[:, 1]
+    vel, pos = integrate_trapezoid(d, dt)
+    first = d[:, s]
+    # the first sample's share of the states at s: what a unit more of it changes there
+    more_v, more_x = integrate_trapezoid(d + (np.arange(s + 1) == s), dt)
+    np.testing.assert_allclose(more_v[:, s] - vel[:, s], dt / 2, rtol=1e-9)
+    np.testing.assert_allclose(more_x[:, s] - pos[:, s], dt**2 / 4, rtol=1e-6)
+    want = np.stack([vel[:, s] - dt / 2 * first, pos[:, s] - dt**2 / 4 * first], axis=1)
+    got = start_state(np.full(n, s), dt, rng.standard_normal((n, 2)), "trapezoid")
+    np.testing.assert_allclose(np.cov(got.T), np.cov(want.T), rtol=0.05)
+    assert not start_state(np.zeros(3, dtype=int), dt, np.ones((3, 2)), "trapezoid").any()
+
+
+def test_continuous_noise_carries_the_trapezoid_rules_state():
+    """Measurement "continuous", integration t0: noisy minus clean regressors = the window's own noise integrated
+    from zero (the recording's rule) plus the states at the window's first sample: a constant v_s in rel_vel and
+    x_s + k dt v_s in rel_disp (k = 0 at that sample)."""
+    dm = make(fir=None, spec=CONTINUOUS)
+    for clean, noisy in (
+        (dm.eval_batch("test", 0.0), dm.eval_batch("test", 0.05)),
+        (dm.eval_batch("test", 0.0, windows=4), dm.eval_batch("test", 0.05, windows=4)),
+    ):
+        noise = (noisy["signals"] - clean["signals"]).numpy().astype(np.float64)
+        own_v, own_d = relative_states(noise[:, 0], noise[:, 1], CONTINUOUS.dt, "continuous")
+        off_v = (noisy["rel_vel"] - clean["rel_vel"]).numpy() - own_v
+        off_d = (noisy["rel_disp"] - clean["rel_disp"]).numpy() - own_d
+        v_s = off_v[:, :1]
+        np.testing.assert_allclose(off_v, np.broadcast_to(v_s, off_v.shape), atol=1e-6)
+        x_s = off_d - CONTINUOUS.dt * np.arange(300) * v_s
+        np.testing.assert_allclose(x_s, np.broadcast_to(x_s[:, :1], x_s.shape), atol=1e-6)
+        assert (np.abs(v_s) > 0).all()
+
+
+def test_continuous_k_windows_are_the_series_long_integration_in_their_interior():
+    """Reference: the recording's whole noise series (drawn as the data module draws it) re-integrated from t0
+    by relative_states, the recording's own rule, gain correction included. In a window's interior the velocity
+    agrees to float32 rounding; the displacement once its constant takes the correction's dt^2 (d_s + d_{s+1} -
+    d_0 - d_1) / 24 (the series corrects sample s with d_{s-1}, the window cannot)."""
+    dm = make(fir=None, spec=CONTINUOUS)
+    k, std, w, dt = 8, 0.05, 300, CONTINUOUS.dt
+    clean, noisy = dm.eval_batch("test", 0.0, windows=k), dm.eval_batch("test", std, windows=k)
+    rows = dm.rows("test")
+    series = np.random.default_rng([dm.seed, SPLITS.index("test"), 300]).standard_normal(
+        (len(rows), 2, CONTINUOUS.n_steps), dtype=np.float32
+    )
+    series = std * series.astype(np.float64)
+    ref_v, ref_d = relative_states(series[:, 0], series[:, 1], dt, "continuous")
+    d = series[:, 0] - series[:, 1]
+    noise = (noisy["signals"] - clean["signals"]).numpy()
+    dv = (noisy["rel_vel"] - clean["rel_vel"]).numpy()
+    dd = (noisy["rel_disp"] - clean["rel_disp"]).numpy()
+    seat = clean["signals"][:, 0].numpy()
+    starts = set()
+    for b in range(len(seat)):
+        i = b // k
+        recording = np.lib.stride_tricks.sliding_window_view(dm.dataset.seat_acc[rows[i]], w)
+        (s,) = np.flatnonzero((recording == seat[b]).all(axis=1))
+        starts.add(int(s))
+        np.testing.assert_allclose(noise[b], series[i, :, s : s + w], rtol=0, atol=1e-6)  # the series drawn
+        np.testing.assert_allclose(dv[b, 1:-1], ref_v[i, s + 1 : s + w - 1], rtol=0, atol=1e-8)
+        shift = dt**2 / 24 * (d[i, s] + d[i, s + 1] - d[i, 0] - d[i, 1])
+        np.testing.assert_allclose(dd[b, 2:-2], ref_d[i, s + 2 : s + w - 2] + shift, rtol=0, atol=1e-8)
+    assert len(starts) > 3 * k
 
 
 def test_noise_in_the_regressors_carries_the_state_it_had_reached():

@@ -3,7 +3,8 @@
 import numpy as np
 import pytest
 
-from hybrid_sysid.physics import QuarterCar, integrate, relative_states, road_profiles, simulate
+from hybrid_sysid.physics import QuarterCar, integrate, integrate_trapezoid, relative_states, road_profiles, simulate
+from hybrid_sysid.physics.integrate import correct_gain, integrate_corrected
 
 CAR = QuarterCar()
 
@@ -88,3 +89,33 @@ def test_paper_measurement_biases_the_fit(road_class):
     assert worst_fit_error(road_class, "paper", 0.001) > 0.5
     # the consistent recording with eq. 22's same-step pairing leaves a bias of about dt p1 y''
     assert 0.002 < worst_fit_error(road_class, "consistent", 0.001, paired="same_step") < 0.03
+
+
+def test_the_gain_correction_is_fourth_order_and_leaves_constants_and_ramps():
+    """Reference: the closed-form integrals of a = 1 - cos(omega t) from rest. a(0) = a'(0) = 0, so the start
+    leaves no second-order error (``integrate_corrected``) and nothing but the rule's gain errs."""
+    omega, errors = 2 * np.pi * 9.0, []
+    for dt in (0.004, 0.002):
+        t = dt * np.arange(int(1.0 / dt) + 1)
+        vel, pos = integrate_corrected(1 - np.cos(omega * t), dt)
+        want_vel, want_pos = t - np.sin(omega * t) / omega, t**2 / 2 - (1 - np.cos(omega * t)) / omega**2
+        errors.append([np.abs(vel - want_vel)[1:-1].max(), np.abs(pos - want_pos)[2:-2].max()])
+    ratio = np.array(errors[0]) / np.array(errors[1])
+    assert ((12 < ratio) & (ratio < 20)).all()  # halving dt divides the error by 2^4 (the plain rule's by 2^2)
+    k = np.arange(50.0)
+    for x in (np.full(50, 3.7e4), 2.5 + 0.3 * k):
+        np.testing.assert_allclose(correct_gain(x), x, rtol=1e-14, atol=0)
+
+
+def test_the_correction_is_the_3_tap_filter_with_its_edges_extrapolated_linearly():
+    """Reference: numpy's convolution with [-1/12, 7/6, -1/12] of the rows padded by one linearly extrapolated
+    sample at each end, which leaves the edge samples as they are."""
+    x = np.random.default_rng(0).standard_normal((3, 40))
+    padded = np.concatenate([2 * x[:, :1] - x[:, 1:2], x, 2 * x[:, -1:] - x[:, -2:-1]], axis=1)
+    want = np.stack([np.convolve(row, [-1 / 12, 7 / 6, -1 / 12], mode="valid") for row in padded])
+    np.testing.assert_allclose(correct_gain(x), want, rtol=0, atol=1e-14)
+    vel = integrate_corrected(x, 0.005)[0]
+    np.testing.assert_array_equal(vel, correct_gain(integrate_trapezoid(x, 0.005)[0]))
+    np.testing.assert_array_equal(
+        relative_states(x, 0.5 * x, 0.005, "continuous")[1], integrate_corrected(0.5 * x, 0.005)[1]
+    )

@@ -114,7 +114,11 @@ class QuarterCarDataModule(L.LightningDataModule):
         starts = rng.integers(0, self.n_starts(), size=len(rows))
         base = rng.standard_normal((len(rows), 2, self.window)) if noise_std > 0 else None
         # drawn after the window's noise, so that noise is the same whatever the integration
-        state = None if base is None else start_state(starts, self.data.dt, rng.standard_normal((len(rows), 2)))
+        state = (
+            None
+            if base is None
+            else start_state(starts, self.data.dt, rng.standard_normal((len(rows), 2)), self.data.rule)
+        )
         if windows > 1:
             starts, base, state = self._more_windows(rows, code, starts, base, windows)
         if limit is not None:
@@ -135,8 +139,8 @@ class QuarterCarDataModule(L.LightningDataModule):
 
     def _more_windows(self, rows, code, starts0, base0, k):
         """(n, K) starts, (n, K, 2, window) standard-normal noise cut from one series-long draw per recording
-        and (n, K, 2) the state that noise, integrated from t0, has reached at each start (``start_state``'s
-        (V, X)); column 0 starts where the K = 1 window does."""
+        and (n, K, 2) the state that noise, integrated from t0 by the recording's rule, has reached at each start
+        (``start_state``'s (V, X), by its convention for that rule); column 0 starts where the K = 1 window does."""
         n = len(rows)
         starts = np.empty((n, k), dtype=np.int64)
         starts[:, 0] = starts0
@@ -156,15 +160,24 @@ class QuarterCarDataModule(L.LightningDataModule):
         )
         cols = starts[:, :, None] + np.arange(self.window)  # (n, K, window)
         base = np.stack([np.take_along_axis(series[:, c], cols.reshape(n, -1), axis=1) for c in (0, 1)], axis=1)
-        vel, pos = integrate(series[:, 0].astype(np.float64) - series[:, 1], self.data.dt)
-        before = np.maximum(starts - 1, 0)
-        state = np.stack(
-            [
-                np.take_along_axis(vel, starts, axis=1),
-                np.where(starts > 0, np.take_along_axis(pos, before, axis=1), 0.0),
-            ],
-            axis=-1,
-        )
+        diff = series[:, 0].astype(np.float64) - series[:, 1]
+        vel, pos = integrate(diff, self.data.dt)
+        if self.data.rule == "symplectic":
+            before = np.maximum(starts - 1, 0)
+            state = np.stack(
+                [
+                    np.take_along_axis(vel, starts, axis=1),
+                    np.where(starts > 0, np.take_along_axis(pos, before, axis=1), 0.0),
+                ],
+                axis=-1,
+            )
+        else:
+            # the trapezoid rule's (V, X) are symplectic Euler's sums at s, dt sum_{j<s} d_j and dt^2 sum_{j<s}
+            # (s - j) d_j, with the first sample d_0 weighted dt / 2 and dt^2 (2s - 1) / 4 instead
+            dt, first = self.data.dt, diff[:, :1]
+            v = np.take_along_axis(vel, starts, axis=1) - dt / 2 * first
+            x = np.take_along_axis(pos, starts, axis=1) - dt**2 * (2 * starts + 1) / 4 * first
+            state = np.where((starts > 0)[..., None], np.stack([v, x], axis=-1), 0.0)
         return starts, base.reshape(n, 2, k, self.window).transpose(0, 2, 1, 3).astype(np.float64), state
 
     def eval_dataloader(

@@ -31,19 +31,41 @@ def gather(windows: np.ndarray, rows: np.ndarray, starts: np.ndarray) -> torch.T
     return torch.from_numpy(windows[rows, starts])
 
 
-def start_state(starts: np.ndarray, dt: float, normals: np.ndarray) -> np.ndarray:
-    """The relative velocity and displacement that unit-variance white noise on both channels, integrated from
-    t0, has reached at each window start: (B, 2) = (V, X), V = rel_vel before the window's first step, X =
-    rel_disp one step before the window. Exact draws from their joint Gaussian (one pair of standard normals
-    ``normals`` (B, 2) per window), so a batch needs no series-long noise draw.
+# The rule each measurement's recordings are re-integrated by (physics.relative_states): noise integrated from
+# t0 with the signals follows it, so the state it carries into a window does too.
+RULES = {"paper": "symplectic", "consistent": "symplectic", "continuous": "trapezoid"}
 
-    With d_j = seat noise - body noise (variance 2), symplectic Euler gives V = dt sum_{j<s} d_j and
-    X = dt^2 sum_{j<s} (s - 1 - j) d_j: Var V = 2 dt^2 s, Var X = 2 dt^4 sum m^2, Cov = 2 dt^3 sum m (m < s).
+
+def start_state(starts: np.ndarray, dt: float, normals: np.ndarray, rule: str = "symplectic") -> np.ndarray:
+    """The part of the relative velocity and displacement that unit-variance white noise on both channels,
+    integrated from t0 by ``rule``, has reached at each window start s and that the window's own noise does not
+    enter: (B, 2) = (V, X). Exact draws from their joint Gaussian (one pair of standard normals ``normals``
+    (B, 2) per window), so a batch needs no series-long noise draw. d_j = seat noise - body noise (variance 2).
+
+    "symplectic" (v_k = v_{k-1} + dt a_{k-1}): V = dt sum_{j<s} d_j is rel_vel at s and X = dt^2 sum_{j<s}
+    (s - 1 - j) d_j rel_disp at s - 1: Var V = 2 dt^2 s, Var X = 2 dt^4 sum m^2, Cov = 2 dt^3 sum m (m < s).
+    The window continues them as v_{s+k} = V + lv_k, x_{s+k} = X + (k + 1) dt V + lx_k.
+
+    "trapezoid" (v_k = v_{k-1} + dt (a_{k-1} + a_k) / 2, measurement "continuous"): rel_vel and rel_disp at s
+    hold the window's first sample, v_s = V + dt d_s / 2 and x_s = X + dt^2 d_s / 4 (``WindowCutter.batch``
+    adds those), with V = dt (d_0 / 2 + sum_{0<j<s} d_j) and X = dt^2 ((2s - 1) d_0 / 4 + sum_{0<j<s} (s - j)
+    d_j): Var V = 2 dt^2 (s - 3/4), Cov = 2 dt^3 ((2s - 1) / 8 + s (s - 1) / 2), Var X = 2 dt^4 ((2s - 1)^2 /
+    16 + (s - 1) s (2s - 1) / 6). The window continues them as v_{s+k} = v_s + lv_k, x_{s+k} = x_s + k dt v_s
+    + lx_k. At s = 0 nothing came before: (0, 0) under both rules.
+    lv, lx: the window's own noise integrated from zero by the same rule.
     """
     s = np.asarray(starts, dtype=np.float64)
-    var_v = 2 * dt**2 * s
-    cov = 2 * dt**3 * s * (s - 1) / 2
-    var_x = 2 * dt**4 * (s - 1) * s * (2 * s - 1) / 6
+    if rule == "symplectic":
+        var_v = 2 * dt**2 * s
+        cov = 2 * dt**3 * s * (s - 1) / 2
+        var_x = 2 * dt**4 * (s - 1) * s * (2 * s - 1) / 6
+    elif rule == "trapezoid":
+        after = s > 0
+        var_v = np.where(after, 2 * dt**2 * (s - 0.75), 0.0)
+        cov = np.where(after, 2 * dt**3 * ((2 * s - 1) / 8 + s * (s - 1) / 2), 0.0)
+        var_x = np.where(after, 2 * dt**4 * ((2 * s - 1) ** 2 / 16 + (s - 1) * s * (2 * s - 1) / 6), 0.0)
+    else:
+        raise ValueError(f"rule = {rule!r} is unknown; allowed: symplectic, trapezoid")
     a = np.sqrt(var_v)
     b = np.divide(cov, a, out=np.zeros_like(a), where=a > 0)
     c = np.sqrt(np.maximum(var_x - b * b, 0.0))
@@ -60,6 +82,14 @@ class WindowCutter:
     stream cut anywhere, its states at the cut unknown): the regressors are then off by an unknown constant
     (rel_vel) and ramp (rel_disp), which a band-pass of zero DC and zero ramp gain removes.
 
+    The noise follows the recording's integration rule (``RULES``; ``start_state``). Under measurement
+    "continuous" the window's own noise is re-integrated with the trapezoid rule's gain correction, like the
+    recording: a 3-tap filter that returns constants and ramps as they are, so in the window's interior the
+    t0 noise is still its own integral plus a constant and a ramp. A series-long integration differs only at
+    the window's edges (one sample at each end in rel_vel, two in rel_disp), which the correction leaves alone
+    in the window but not in the series, and in the rel_disp constant, by dt^2 (d_s + d_{s+1} - d_0 - d_1) / 24
+    (the series corrects sample s with d_{s-1}): O(dt) and O(dt^2) times the noise, far below its integral.
+
     ``fir`` (symmetric band-pass taps, or None): the batches also carry "seat_f", "rel_vel_f", "rel_disp_f",
     the three signals of the seat equation through that filter ('valid' part of the window, W - taps + 1
     samples). The clean part is filtered once per recording in float64 here; the noise part per batch by a
@@ -70,6 +100,7 @@ class WindowCutter:
     def __init__(self, ds: SimulatedDataset, window: int, integration: str = "t0", fir: np.ndarray | None = None):
         self.dt = ds.spec.dt
         self.measurement = ds.spec.measurement
+        self.rule = RULES[self.measurement]
         self.window, self.integration = window, integration
         self.seat, self.body = _windows(ds.seat_acc, window), _windows(ds.body_acc, window)
         self.rel_vel, self.rel_disp = _windows(ds.rel_vel, window), _windows(ds.rel_disp, window)
@@ -92,7 +123,8 @@ class WindowCutter:
         self, rows, starts, noise: np.ndarray | None = None, state: np.ndarray | None = None
     ) -> dict[str, torch.Tensor]:
         """Windows (rows[i], starts[i]); ``noise`` (B, 2, W) added to both channels; ``state`` (B, 2): the
-        noise's (V, X) at each window's start (``start_state``), used by integration "t0" (None: zero)."""
+        noise's (V, X) at each window's start by the recording's rule (``start_state``), used by integration
+        "t0" (None: zero)."""
         rows, starts = np.asarray(rows, dtype=np.int64), np.asarray(starts, dtype=np.int64)
         signals = torch.stack([gather(self.seat, rows, starts), gather(self.body, rows, starts)], dim=1)
         if self.integration == "window":  # clean and noisy alike, from zero at the window's start
@@ -111,9 +143,16 @@ class WindowCutter:
                 full = torch.fft.irfft(torch.fft.rfft(parts, self.nfft) * self.fir, self.nfft)
                 noise_f = full[..., self.taps - 1 : self.window]
             if self.integration == "t0":
-                if state is not None:  # v_{s+k} = V + local v_k; x_{s+k} = X + (k + 1) dt V + local x_k
+                if state is not None and self.rule == "symplectic":
+                    # v_{s+k} = V + local v_k; x_{s+k} = X + (k + 1) dt V + local x_k
                     nv = nv + state[:, :1]
                     nd = nd + state[:, 1:] + self.dt * np.arange(1, self.window + 1) * state[:, :1]
+                elif state is not None:  # trapezoid: the states at s hold the window's first sample
+                    first = np.where(starts > 0, noise[:, 0, 0] - noise[:, 1, 0], 0.0)[:, None]
+                    v_s = state[:, :1] + self.dt / 2 * first
+                    x_s = state[:, 1:] + self.dt**2 / 4 * first
+                    nv = nv + v_s
+                    nd = nd + x_s + self.dt * np.arange(self.window) * v_s
                 rel_vel = rel_vel + torch.from_numpy(nv.astype(np.float32))
                 rel_disp = rel_disp + torch.from_numpy(nd.astype(np.float32))
             signals = signals + torch.from_numpy(noise.astype(np.float32))
@@ -179,7 +218,7 @@ class RandomWindows(IterableDataset):
                 noise_rng = np.random.default_rng(self._key(2000 + e, b))
                 noise = self.noise_std * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
                 state = self.noise_std * start_state(
-                    starts[sl], self.data.dt, noise_rng.standard_normal((len(order[sl]), 2))
+                    starts[sl], self.data.dt, noise_rng.standard_normal((len(order[sl]), 2)), self.data.rule
                 )
             yield self.data.batch(order[sl], starts[sl], noise, state)
 
