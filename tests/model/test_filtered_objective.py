@@ -72,20 +72,17 @@ def test_noise_gram_gives_the_variance_of_the_filtered_residual_of_pure_noise():
         assert sigma**2 * q @ gram @ q == pytest.approx(want, rel=0.05)
 
 
-def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
-    """One window of a smooth road, many noise draws, one p for all (as a network's loss pools windows): the
-    plain filtered least squares (numpy) is biased by the noise in its regressors (towards p of less noise
-    gain); the weighted optimum is not."""
-    spec = DatasetSpec(n_roads=3, n_masses=2, n_steps=1200, seed=5, road_classes=("A",))
+def _plain_and_eiv_bias(seed: int, r: int) -> tuple[np.ndarray, np.ndarray]:
+    """Relative bias of the plain filtered least squares (numpy) and of the weighted optimum for one window of a
+    smooth road under 400 noise draws, one p for all (as a network's loss pools windows)."""
+    spec = DatasetSpec(n_roads=3, n_masses=2, n_steps=1200, seed=seed, road_classes=("A",))
     dm = QuarterCarDataModule(spec, window=500, seed=0, fir=FIR, train_fraction=0.67, val_fraction=0.5)
     dm.setup()
-    row = dm.rows("train")[1:2]
+    row = dm.rows("train")[r : r + 1]
     true = dm.dataset.params[row[0]].astype(np.float64)
-    data = dm.data
-    rng = np.random.default_rng(0)
     n = 400
-    noise = 0.03 * rng.standard_normal((n, 2, 500))
-    batch = data.batch(np.repeat(row, n), np.full(n, 300), noise)
+    noise = 0.03 * np.random.default_rng(0).standard_normal((n, 2, 500))
+    batch = dm.data.batch(np.repeat(row, n), np.full(n, 300), noise)
     y, v, d = (batch[k].double().numpy() for k in ("seat_f", "rel_vel_f", "rel_disp_f"))
     plain = np.linalg.lstsq(-np.stack([v.ravel(), d.ravel()], 1), y.ravel(), rcond=None)[0]
     obj = HybridObjective(filter=BAND, dt=spec.dt, weighting="eiv", normalize=False).double()
@@ -95,10 +92,20 @@ def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
         return obj(torch.tensor(p, dtype=torch.float64).expand(n, 2), f64).item()
 
     eiv = minimize(loss, plain, method="Nelder-Mead", options={"xatol": 1e-8, "fatol": 1e-16}).x
-    bias_plain, bias_eiv = (plain - true) / true, (eiv - true) / true
-    assert (np.abs(bias_plain) > 0.02).all()
-    assert (np.abs(bias_eiv) < np.abs(bias_plain) / 3).all()
-    assert (np.abs(bias_eiv) < 0.01).all()
+    return (plain - true) / true, (eiv - true) / true
+
+
+def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
+    """Six windows (three datasets, two training recordings each): the plain filtered least squares is biased by
+    the noise in its regressors (towards p of less noise gain); the weighted optimum much less. Measured, mean
+    |bias| over the windows: plain 9.8 / 10.1% (p1 / p2), weighted 1.3 / 0.7%; single windows vary (plain from
+    0.05% to 41%), so the test takes the mean."""
+    biases = [_plain_and_eiv_bias(seed, r) for seed in (5, 6, 7) for r in (0, 1)]
+    plain = np.mean([np.abs(b[0]) for b in biases], axis=0)
+    eiv = np.mean([np.abs(b[1]) for b in biases], axis=0)
+    assert (plain > 0.04).all()
+    assert (eiv < plain / 3).all()
+    assert (eiv < 0.025).all()
 
 
 def test_bad_filter_options_are_refused():
