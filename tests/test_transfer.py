@@ -195,21 +195,207 @@ def test_another_architecture_is_one_named_error(source, tmp_path, make_cfg):
         train(make_cfg(*TINY, f"init_from={tmp_path / 'nowhere'}"), tmp_path / "other", overrides=[])
 
 
+def rows_of(runs) -> dict:
+    """{(scenario, row): (kind, config, directory, source)} of a plan's sub-runs."""
+    return {tuple(o.split("=", 1)[1] for o in r[3]): (r[0], r[1], r[2], r[4]) for r in runs}
+
+
 def test_the_transfer_plan(make_cfg, tmp_path):
     from hybrid_sysid.experiments.transfer import plan
 
     cfg = make_cfg("experiment=transfer", "data=tiny", "seed=2")
     runs = plan(cfg, tmp_path)
-    assert len(runs) == 1 + 4 * 3
-    kinds = {(r[3][0], r[3][1].split("=")[1][0]): r for r in runs}
-    source = runs[0]
-    assert source[1].objective._target_.endswith("LabelledObjective") and dict(source[1].car) == PAPER
-    seat = kinds[("scenario=seat_shift", "2")][1]
+    rows = rows_of(runs)
+    assert len(runs) == len(rows) == 1 + 6 * 3  # the source, then per scenario: eval, 3 adapted, scratch, oracle
+    kind, source, where, _ = rows[("paper", "1 labelled, paper's car")]
+    assert kind == "train" and where == tmp_path / "source" and runs[0][2] == where
+    assert source.objective._target_.endswith("LabelledObjective") and dict(source.car) == PAPER
+    assert [r for s, r in rows if s == "seat_shift"] == [
+        "1 labelled, paper's car",
+        "2 + hybrid adaptation",
+        "2 + hybrid_bandpass adaptation",
+        "2 + label_free adaptation",
+        "3 hybrid from scratch",
+        "4 labelled oracle",
+    ]
+    _, seat, where, _ = rows[("seat_shift", "2 + hybrid adaptation")]
+    assert where == tmp_path / "seat_shift" / "adapted"  # hybrid's runs keep the names sweeps already have
     assert seat.objective._target_.endswith("HybridObjective") and seat.init_from == str(tmp_path / "source")
     assert seat.trainer.max_steps == cfg.transfer.adapt_steps and seat.car.c3 == pytest.approx(615 * 1.12)
-    assert kinds[("scenario=continuous", "4")][1].data.measurement == "continuous"
-    assert kinds[("scenario=body_shift", "3")][1].car.m2 == pytest.approx(2160 * 0.6)
-    assert all(r[1].transfer is None and r[1].seed == 2 for r in runs)
+    _, bandpass, where, _ = rows[("seat_shift", "2 + hybrid_bandpass adaptation")]
+    assert where.name == "adapted_hybrid_bandpass" and bandpass.objective.filter.taps == 151
+    assert bandpass.init_from == str(tmp_path / "source") and bandpass.model.optim.lr == cfg.transfer.adapt_lr
+    assert rows[("seat_shift", "3 hybrid from scratch")][2].name == "scratch"
+    assert rows[("continuous", "4 labelled oracle")][1].data.measurement == "continuous"
+    assert rows[("body_shift", "3 hybrid from scratch")][1].car.m2 == pytest.approx(2160 * 0.6)
+    assert all(r[1].transfer is None and r[1].seed == 2 and r[1].baseline is None for r in runs)
+    # the rows sort, as text (the table's order), in the order the chain runs them
+    assert [r for s, r in rows if s == "body_shift"] == sorted(r for s, r in rows if s == "body_shift")
+
+
+@pytest.mark.parametrize("objective", ["hybrid", "hybrid_bandpass", "hybrid_eiv", "label_free"])
+def test_a_chain_composes_an_objective_as_hydra_does(make_cfg, objective):
+    # hybrid_bandpass, hybrid_eiv and label_free build on other presets through their defaults lists
+    from hybrid_sysid.experiments.transfer import variant
+
+    cfg = make_cfg("experiment=field", "data=tiny")
+    mine, hydras = variant(cfg, objective).objective, make_cfg("data=tiny", f"objective={objective}").objective
+    assert OmegaConf.to_container(mine) == OmegaConf.to_container(hydras)  # interpolations unresolved
+
+
+def test_the_field_plan(make_cfg, tmp_path):
+    import hydra.utils
+
+    from hybrid_sysid.experiments.transfer import plan
+
+    cfg = make_cfg("experiment=field", "data=tiny")
+    rows = rows_of(plan(cfg, tmp_path))
+    assert list(rows) == [
+        ("paper", "1 labelled, paper's car"),
+        ("field", "1 labelled, paper's car"),
+        ("field", "2 + hybrid adaptation"),
+        ("field", "2 + hybrid_bandpass adaptation"),
+        ("field", "2 + label_free adaptation"),
+        ("field", "3 label_free from scratch"),
+        ("field", "4 labelled oracle"),
+        ("field", "5 ls_bandpass (no network)"),
+    ]
+    source = rows[("paper", "1 labelled, paper's car")][1]
+    assert dict(source.car) == PAPER and source.data.seat_spread == 0.3 and source.data.measurement == "consistent"
+    for (_, row), (kind, sub, _, from_run) in list(rows.items())[1:]:
+        assert sub.car.c3 == pytest.approx(615 * 1.12) and sub.car.k3 == pytest.approx(98935 * 0.9), row
+        assert sub.data.seat_spread == 0.3 and sub.data.measurement == "continuous", row
+        assert (kind == "eval") == row.startswith("1") and (from_run is not None) == row.startswith("1"), row
+        assert (sub.init_from is not None) == row.startswith("2"), row
+        # the target's prior: the labelled objective's scale of the oracle, the label_free target's scale
+        np.testing.assert_allclose(sub.model.net.p_max, [1.3 * 615 * 1.12 / 50, 1.3 * 98935 * 0.9 / 50])
+    scratch = rows[("field", "3 label_free from scratch")]
+    assert scratch[2].name == "scratch_label_free" and scratch[1].objective.target == "least_squares"
+    assert scratch[1].init_from is None and scratch[1].trainer.max_steps == cfg.trainer.max_steps
+    _, base, where, _ = rows[("field", "5 ls_bandpass (no network)")]
+    assert where == tmp_path / "field" / "baseline_ls_bandpass" and base.task == "train"
+    assert base.baseline == make_cfg("data=tiny", "baseline=ls_bandpass").baseline
+    # an adapted network keeps the source's output bounds (init_from loads them): the target's prior lies inside
+    net = hydra.utils.instantiate(source.model.net)
+    low, high = net.log_lo.exp().numpy(), (net.log_lo + net.log_span).exp().numpy()
+    target = rows[("field", "4 labelled oracle")][1]
+    assert (low < np.array(target.model.net.p_min)).all() and (np.array(target.model.net.p_max) < high).all()
+
+
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        (
+            {"transfer.adapt_objectives": ["hybrid", "labelled"]},
+            r"transfer.adapt_objectives = \['hybrid', 'labelled'\] is not allowed: labelled: it reads labels; "
+            r"a label-free objective preset \(conf/objective\): hybrid, hybrid_bandpass, hybrid_eiv, label_free$",
+        ),
+        (
+            {"transfer.adapt_objectives": ["label_free", "hybrid", "label_free"]},
+            r"transfer.adapt_objectives = .* is not allowed: label_free twice; each objective once \(one row each\)$",
+        ),
+        (
+            {"transfer.adapt_objectives": ["hybird"]},
+            r"transfer.adapt_objectives = \['hybird'\] is not allowed: hybird: no such objective preset; "
+            r"a label-free objective preset",
+        ),
+        (
+            {"transfer.scratch_objective": "combined"},
+            r"transfer.scratch_objective = 'combined' is not allowed: combined: it reads labels; a label-free",
+        ),
+        (
+            {"transfer.baseline": "ls_bandpas"},
+            r"transfer.baseline = 'ls_bandpas' is not allowed: null or a baseline preset \(conf/baseline\): "
+            r"ls_bandpass, ls_bandpass_m3, ls_series, ls_window$",
+        ),
+        # a lighter seat on the target: p beyond the bounds the adapted networks keep from the source. The target's
+        # p1 range: 0.7 * 688.8 / 200 to 1.3 * 688.8 / 30; the source's bounds: 0.7 * 615 / 200 = 2.1525 to
+        # 1.3 * 615 / 50 = 15.99, widened by FastCNN's margin, a tenth of the log range (x 7.43**0.1) each side
+        (
+            {"transfer.scenarios.field.data.m3_min": 30},
+            r"transfer.scenarios.field is not allowed with adaptation: the target's p1 range 2.411 to 29.85 leaves "
+            r"the source network's output bounds 1.761 to 19.54, which the adapted networks keep; widen",
+        ),
+    ],
+    ids=["labelled", "twice", "misspelt", "scratch", "baseline", "bounds"],
+)
+def test_bad_transfer_settings_are_one_line_before_any_work(make_cfg, tmp_path, change, match):
+    from hybrid_sysid.experiments.transfer import plan
+
+    cfg = make_cfg("experiment=field", "data=tiny")
+    for key, value in change.items():
+        OmegaConf.update(cfg, key, value, merge=True, force_add=True)
+    with pytest.raises(ConfigError, match=match) as refused:
+        plan(cfg, tmp_path / "job")
+    assert "\n" not in str(refused.value)
+    assert not (tmp_path / "job").exists()
+    # without adaptation the lighter seat is only evaluated: allowed
+    if "m3_min" in str(change):
+        OmegaConf.update(cfg, "transfer.adapt_objectives", [], merge=False)
+        assert [r[3][1] for r in plan(cfg, tmp_path / "job")][2:] == [
+            "row=3 label_free from scratch",
+            "row=4 labelled oracle",
+            "row=5 ls_bandpass (no network)",
+        ]
+
+
+def test_the_field_chain_runs_end_to_end_and_a_rerun_skips_it(make_cfg, tmp_path):
+    # debug=fast experiment=field: the chain of one seed in this process, one record per row
+    from hybrid_sysid.experiments.transfer import run_chain
+    from hybrid_sysid.report.collect import load_runs
+    from hybrid_sysid.report.tables import summary_table
+
+    cfg = make_cfg("debug=fast", "experiment=field")
+    job = tmp_path / "sweep" / "0"
+    out = run_chain(cfg, job, ["debug=fast", "experiment=field", "seed=0"])
+    assert out["status"] == "completed"
+    records = {p.parent.relative_to(job).as_posix(): json.loads(p.read_text()) for p in job.rglob("metrics.json")}
+    assert (
+        sorted(records)
+        == sorted(out["runs"])
+        == [
+            "field/adapted",
+            "field/adapted_hybrid_bandpass",
+            "field/adapted_label_free",
+            "field/baseline_ls_bandpass",
+            "field/oracle",
+            "field/scratch_label_free",
+            "field/source",
+            "source",
+        ]
+    )
+    assert all(r["status"] == "completed" for r in records.values())
+    assert {r["overrides"][-1] for r in records.values()} == {"seed=0"}
+    assert records["field/source"]["source_run"] == str(job / "source")
+    for name in ("adapted", "adapted_hybrid_bandpass", "adapted_label_free"):
+        assert records[f"field/{name}"]["init_from"] == str(job / "source")
+        assert records[f"field/{name}"]["monitor"] == "val/loss" and records[f"field/{name}"]["steps"] == 20
+    assert records["field/scratch_label_free"]["monitor"] == "val/loss"
+    assert (
+        records["field/baseline_ls_bandpass"]["steps"] == 0 and records["field/baseline_ls_bandpass"]["monitor"] is None
+    )
+    # the adapted networks kept the source's output bounds
+    bounds = [
+        torch.load(job / d / "checkpoints" / "best.ckpt", weights_only=True)["state_dict"]["net.log_lo"]
+        for d in ("source", "field/adapted_label_free")
+    ]
+    assert torch.equal(*bounds)
+    # the table: one row per (scenario, row, K) in reading order
+    table = summary_table(load_runs(job.parent)[1])
+    assert [r for s, r, k in table.index if s == "field" and k == 1] == [
+        "1 labelled, paper's car",
+        "2 + hybrid adaptation",
+        "2 + hybrid_bandpass adaptation",
+        "2 + label_free adaptation",
+        "3 label_free from scratch",
+        "4 labelled oracle",
+        "5 ls_bandpass (no network)",
+    ]
+    assert (table[("n_seeds", "", "")] == 1).all()
+    # a re-run (the sweep run again) skips every completed sub-run
+    stamps = {p: p.stat().st_mtime_ns for p in job.rglob("metrics.json")}
+    assert run_chain(cfg, job, ["debug=fast", "experiment=field", "seed=0"]) == out
+    assert {p: p.stat().st_mtime_ns for p in job.rglob("metrics.json")} == stamps
 
 
 @pytest.mark.integration

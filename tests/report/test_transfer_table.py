@@ -1,6 +1,8 @@
-"""experiment=transfer's table: nested sub-runs found, rows (scenario, row), marks within a scenario, bar figure."""
+"""experiment=transfer's and experiment=field's table: nested sub-runs found, rows (scenario, row) in reading
+order, marks within a scenario, bar figure."""
 
 import numpy as np
+import pytest
 from matplotlib.container import BarContainer
 
 from hybrid_sysid.report.collect import load_runs
@@ -66,3 +68,60 @@ def test_the_bar_figure_is_drawn(tmp_path, drawn):
         # p1 left of p2 in each row's group
         centres = [[b.get_x() + b.get_width() / 2 for b in bars] for bars in per_param]
         assert all(a < b < a + 1 for a, b in zip(*centres))
+
+
+# experiment=field's rows (hybrid_sysid.experiments.transfer), written here in another order than they read
+FIELD_ROWS = {
+    "5 ls_bandpass (no network)": ("baseline_ls_bandpass", 0.004),
+    "2 + label_free adaptation": ("adapted_label_free", 0.03),
+    "1 labelled, paper's car": ("source", 0.2),
+    "3 label_free from scratch": ("scratch_label_free", 0.05),
+    "2 + hybrid_bandpass adaptation": ("adapted_hybrid_bandpass", 0.06),
+    "4 labelled oracle": ("oracle", 0.01),
+    "2 + hybrid adaptation": ("adapted", 0.1),
+}
+
+
+def make_field_sweep(root):
+    for seed in SEEDS:
+        make_run(
+            root / str(seed) / "source",
+            ["experiment=field", "scenario=paper", "row=1 labelled, paper's car", f"seed={seed}"],
+            seed,
+            results=known_results({("test", 0.0, p): 0.02 + 0.001 * seed for p in ("p1", "p2")}),
+        )
+        for row, (name, value) in FIELD_ROWS.items():
+            make_run(
+                root / str(seed) / "field" / name,
+                ["experiment=field", "scenario=field", f"row={row}", f"seed={seed}"],
+                seed,
+                results=known_results({("test", 0.0, p): value + 0.001 * seed for p in ("p1", "p2")}),
+            )
+    return root
+
+
+def test_every_row_of_a_field_sweep_in_reading_order_and_drawn(tmp_path, drawn):
+    _, table = write_summary(make_field_sweep(tmp_path / "sweep"), figures=False)
+    reading = [
+        "1 labelled, paper's car",
+        "2 + hybrid adaptation",
+        "2 + hybrid_bandpass adaptation",
+        "2 + label_free adaptation",
+        "3 label_free from scratch",
+        "4 labelled oracle",
+        "5 ls_bandpass (no network)",
+    ]
+    assert list(table.loc["field"].index) == reading
+    assert compare_marks(table).loc[("field", "5 ls_bandpass (no network)"), (0.0, "p1")] == "best"
+    transfer_figure(table, tmp_path / "bars.png")
+    fig = drawn["bars"]
+    by_title = {ax.get_title(): ax for ax in fig.axes}
+    assert [t.get_text() for t in by_title["field"].get_xticklabels()] == reading
+    bars = [c for c in by_title["field"].containers if isinstance(c, BarContainer)]
+    np.testing.assert_allclose(
+        [b.get_height() for b in bars[0]], [100 * (FIELD_ROWS[r][1] + 0.0005) for r in reading], rtol=1e-9
+    )
+    # a panel as wide as its rows (the one-row panel as three): every group of bars is equally wide on the page
+    widths = {t: ax.get_position().width / (ax.get_xlim()[1] - ax.get_xlim()[0]) for t, ax in by_title.items()}
+    assert by_title["paper"].get_xlim() == (-0.5, 2.5) and by_title["field"].get_xlim() == (-0.5, 6.5)
+    assert widths["field"] == pytest.approx(widths["paper"], rel=0.02)

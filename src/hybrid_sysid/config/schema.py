@@ -102,10 +102,15 @@ class EvaluationConfig:
 @dataclass
 class TransferConfig:
     """task=transfer (hybrid_sysid.experiments.transfer): a labelled network on the config's car, then on each
-    scenario's target: evaluated, adapted without labels, the hybrid objective from scratch, a labelled oracle."""
+    scenario's target: evaluated, adapted without labels, a label-free objective from scratch, a labelled oracle,
+    and optionally a baseline without a network."""
 
-    adapt_steps: int = 600  # hybrid-objective steps from the source network's weights
+    adapt_steps: int = 600  # label-free steps from the source network's weights
     adapt_lr: float = 5e-3
+    # label-free objective presets (conf/objective), one adapted row each; [] for none
+    adapt_objectives: List[str] = field(default_factory=lambda: ["hybrid"])
+    scratch_objective: str = "hybrid"  # the label-free objective preset of the from-scratch row
+    baseline: Optional[str] = None  # a baseline preset (conf/baseline, e.g. ls_bandpass) for a row without network
     scenarios: Dict[str, Any] = field(default_factory=dict)  # name -> {car: a car preset, data: {key: value}}
 
 

@@ -1,4 +1,5 @@
-"""``hybrid-sysid experiment=transfer``: identification on a car the network was not trained on.
+"""``hybrid-sysid experiment=transfer`` (and experiment=field): identification on a car the network was not
+trained on.
 
 One job per seed (the sweep runs them side by side) trains, in order, in its own directory:
 
@@ -6,14 +7,18 @@ One job per seed (the sweep runs them side by side) trains, in order, in its own
 - for each target scenario (``transfer.scenarios``: another car preset, other data values):
   ``<scenario>/source``: that network evaluated on the target's test roads, no training
   (hybrid_sysid.training.run.evaluate_checkpoint, what hybrid-sysid-eval runs);
-  ``<scenario>/adapted``: that network, then ``transfer.adapt_steps`` steps of the hybrid objective on the
-  target's unlabelled training recordings (``init_from``; model selection by the label-free val/loss);
-  ``<scenario>/scratch``: the hybrid objective from random weights on the target;
-  ``<scenario>/oracle``: the labelled objective with the target's labels.
+  ``<scenario>/adapted[_<objective>]``: for each label-free objective of ``transfer.adapt_objectives``, that
+  network, then ``transfer.adapt_steps`` steps of the objective on the target's unlabelled training recordings
+  (``init_from``; model selection by the label-free val/loss);
+  ``<scenario>/scratch[_<objective>]``: the label-free ``transfer.scratch_objective`` from random weights on the
+  target;
+  ``<scenario>/oracle``: the labelled objective with the target's labels;
+  ``<scenario>/baseline_<name>``: when ``transfer.baseline`` names a baseline preset (conf/baseline), that
+  baseline on the target, without a network (an ordinary ``baseline=`` run).
 
 Each sub-run writes an ordinary run record whose overrides are ``scenario=...`` and ``row=...``, so the sweep
-summary's table has one row per (scenario, row, K). A Hydra sweep cannot chain jobs that depend on each other;
-this module does, inside a job.
+summary's table has one row per (scenario, row, K); a re-run skips the sub-runs whose records are complete. A
+Hydra sweep cannot chain jobs that depend on each other; this module does, inside a job.
 """
 
 from __future__ import annotations
@@ -23,27 +28,68 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config import validate
+from hybrid_sysid.config import CONF_DIR, validate
+from hybrid_sysid.config.resolvers import p_prior
+from hybrid_sysid.config.targets import build
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.experiments.presets import preset
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.run import evaluate_checkpoint, train
 
 log = logging.getLogger("hybrid_sysid")
-# table rows, numbered so they sort in the order the scenario reads
-SOURCE, ADAPTED, SCRATCH, ORACLE = (
-    "1 labelled, paper's car",
-    "2 + hybrid adaptation",
-    "3 hybrid from scratch",
-    "4 labelled oracle",
-)
+# table rows, numbered so they sort (as text) in the order the scenario reads: 1 < 2 + ... < 3 ... < 4 < 5
+SOURCE = "1 labelled, paper's car"
+ORACLE = "4 labelled oracle"
 SCENARIO_KEYS = ("car", "data")
+# the objective whose sub-runs have the bare directory names adapted/ and scratch/, those of a chain with the hybrid
+# objective alone: a re-run of such a sweep skips them instead of training them again under new names (which its
+# summary would then count twice); the other objectives' runs are adapted_<objective>/, scratch_<objective>/
+PLAIN = "hybrid"
+
+
+def adapted_row(objective: str) -> str:
+    return f"2 + {objective} adaptation"
+
+
+def scratch_row(objective: str) -> str:
+    return f"3 {objective} from scratch"
+
+
+def baseline_row(name: str) -> str:
+    return f"5 {name} (no network)"
+
+
+def _subdir(kind: str, objective: str) -> str:
+    return kind if objective == PLAIN else f"{kind}_{objective}"
+
+
+def composed(group: str, choice: str, key: str) -> DictConfig:
+    """conf/<group>/<choice>.yaml as Hydra composes a group choice: its defaults list (other presets of the same
+    group, and ``_self_``, which is last when not listed) merged in order. ConfigError naming ``key`` when there
+    is no such preset."""
+    node = preset(group, choice, key)
+    defaults = node.pop("defaults", None)
+    if defaults is None:
+        return node
+    parts = []
+    for entry in defaults:
+        if entry == "_self_":
+            parts.append(node)
+        elif isinstance(entry, str):
+            parts.append(composed(group, entry, key))
+        else:  # the presets this module reads name only presets of their own group
+            raise ConfigError(
+                f"{key}: {group} = {choice!r} is not allowed: its defaults list entry {entry} is not a {group} preset"
+            )
+    if "_self_" not in defaults:
+        parts.append(node)
+    return OmegaConf.merge(*parts)
 
 
 def variant(cfg: DictConfig, objective: str, **changes) -> DictConfig:
     """A copy of the config for one run (task=train) with another objective and the given dotted keys changed."""
     out = OmegaConf.merge(cfg, {"task": "train", "transfer": None})
-    out.objective = preset("objective", objective, "transfer")
+    out.objective = composed("objective", objective, "transfer")
     for key, value in changes.items():
         OmegaConf.update(out, key.replace("__", "."), value, merge=False)
     return out
@@ -62,33 +108,102 @@ def target(cfg: DictConfig, name: str, scenario) -> DictConfig:
     return out
 
 
-def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, list[str], Path | None]]:
-    """(kind, config, directory, overrides, source) of every sub-run in order; every config validated here,
-    before any work."""
+def _presets(group: str) -> list[str]:
+    return sorted(p.stem for p in (Path(CONF_DIR) / group).glob("*.yaml"))
+
+
+def _reads_labels(cfg: DictConfig, objective: str) -> bool:
+    """Whether an objective preset reads labels: its built objective's ``uses_labels`` (model.objectives)."""
+    return bool(getattr(build(variant(cfg, objective).objective, "objective"), "uses_labels", True))
+
+
+def _label_free_objectives(cfg: DictConfig, key: str, value, names: list[str]) -> None:
+    """Each of ``names`` is an objective preset that reads no labels; else one line naming ``key``, the value
+    and the presets allowed."""
+    offending = [n for n in names if n not in _presets("objective") or _reads_labels(cfg, n)]
+    if offending:
+        allowed = [n for n in _presets("objective") if not _reads_labels(cfg, n)]
+        why = "no such objective preset" if offending[0] not in _presets("objective") else "it reads labels"
+        raise ConfigError(
+            f"{key} = {value!r} is not allowed: {offending[0]}: {why}; "
+            f"a label-free objective preset (conf/objective): {', '.join(allowed)}"
+        )
+
+
+def check_settings(cfg: DictConfig) -> None:
+    """transfer.adapt_objectives, scratch_objective and baseline, each a one-line ConfigError naming the key."""
     t = cfg.transfer
+    adapt = [str(o) for o in t.adapt_objectives]
+    twice = sorted({o for o in adapt if adapt.count(o) > 1})
+    if twice:
+        raise ConfigError(
+            f"transfer.adapt_objectives = {adapt!r} is not allowed: {twice[0]} twice; each objective once "
+            "(one row each)"
+        )
+    _label_free_objectives(cfg, "transfer.adapt_objectives", adapt, adapt)
+    # the labelled objective from scratch on the target is the oracle row already
+    _label_free_objectives(cfg, "transfer.scratch_objective", str(t.scratch_objective), [str(t.scratch_objective)])
+    if t.baseline is not None and str(t.baseline) not in _presets("baseline"):
+        raise ConfigError(
+            f"transfer.baseline = {t.baseline!r} is not allowed: null or a baseline preset (conf/baseline): "
+            f"{', '.join(_presets('baseline'))}"
+        )
+
+
+def check_bounds(source: DictConfig, goal: DictConfig, name: str) -> None:
+    """An adapted network keeps the source network's output bounds (init_from loads them with the weights), so
+    adaptation can only reach the target's p inside them: the target's prior (``${p_prior:...}``) must be, else
+    a ConfigError naming the scenario. A network without a bounded head (no log_lo, log_span buffers) passes."""
+    buffers = dict(build(source.model.net, "model.net").named_buffers())
+    if "log_lo" not in buffers or "log_span" not in buffers:
+        return
+    low = buffers["log_lo"].double().exp().tolist()
+    high = (buffers["log_lo"] + buffers["log_span"]).double().exp().tolist()
+    want = p_prior("min", _root_=goal), p_prior("max", _root_=goal)
+    for i in range(2):
+        # relative slack: the float32 buffers round the bounds
+        if want[0][i] < low[i] * (1 - 1e-6) or want[1][i] > high[i] * (1 + 1e-6):
+            raise ConfigError(
+                f"transfer.scenarios.{name} is not allowed with adaptation: the target's p{i + 1} range "
+                f"{want[0][i]:.4g} to {want[1][i]:.4g} leaves the source network's output bounds {low[i]:.4g} to "
+                f"{high[i]:.4g}, which the adapted networks keep; widen the source's prior (data.m3_min, "
+                "data.m3_max, data.seat_spread) or set transfer.adapt_objectives=[]"
+            )
+
+
+def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, list[str], Path | None]]:
+    """(kind, config, directory, overrides, source) of every sub-run in order; every setting and every config
+    validated here, before any work."""
+    t = cfg.transfer
+    check_settings(cfg)
     source_dir = job_dir / "source"
-    runs = [("train", variant(cfg, "labelled"), source_dir, ["scenario=paper", f"row={SOURCE}"], None)]
+    source = variant(cfg, "labelled")
+    runs = [("train", source, source_dir, ["scenario=paper", f"row={SOURCE}"], None)]
     for name, scenario in t.scenarios.items():
         goal = target(cfg, name, scenario)
+        if t.adapt_objectives:
+            check_bounds(source, goal, name)
         tag = [f"scenario={name}"]
-        runs += [
-            ("eval", variant(goal, "labelled"), job_dir / name / "source", tag + [f"row={SOURCE}"], source_dir),
-            (
-                "train",
-                variant(
-                    goal,
-                    "hybrid",
-                    init_from=str(source_dir),
-                    trainer__max_steps=t.adapt_steps,
-                    model__optim__lr=t.adapt_lr,
-                ),
-                job_dir / name / "adapted",
-                tag + [f"row={ADAPTED}"],
-                None,
-            ),
-            ("train", variant(goal, "hybrid"), job_dir / name / "scratch", tag + [f"row={SCRATCH}"], None),
-            ("train", variant(goal, "labelled"), job_dir / name / "oracle", tag + [f"row={ORACLE}"], None),
-        ]
+        runs.append(("eval", variant(goal, "labelled"), job_dir / name / "source", tag + [f"row={SOURCE}"], source_dir))
+        for objective in t.adapt_objectives:
+            adapted = variant(
+                goal,
+                objective,
+                init_from=str(source_dir),
+                trainer__max_steps=t.adapt_steps,
+                model__optim__lr=t.adapt_lr,
+            )
+            where = job_dir / name / _subdir("adapted", objective)
+            runs.append(("train", adapted, where, tag + [f"row={adapted_row(objective)}"], None))
+        scratch = t.scratch_objective
+        where = job_dir / name / _subdir("scratch", scratch)
+        runs.append(("train", variant(goal, scratch), where, tag + [f"row={scratch_row(scratch)}"], None))
+        runs.append(("train", variant(goal, "labelled"), job_dir / name / "oracle", tag + [f"row={ORACLE}"], None))
+        if t.baseline is not None:
+            # an ordinary baseline run (cfg.baseline set): training.run.train evaluates it without a network
+            base = variant(goal, "labelled", baseline=composed("baseline", t.baseline, "transfer.baseline"))
+            where = job_dir / name / f"baseline_{t.baseline}"
+            runs.append(("train", base, where, tag + [f"row={baseline_row(t.baseline)}"], None))
     for _, sub, _, _, _ in runs:
         validate(sub)
     return runs

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
@@ -20,6 +21,7 @@ from hybrid_sysid.report.plotting import (
 )
 from hybrid_sysid.report.tables import K_LEVEL, METRICS, row_label
 
+GROUP_INCHES = 0.8  # the width of one row's group of bars in the transfer figure
 DODGE = 0.3  # the width over which the rows' points at one noise level are spread, so error bars do not hide
 
 
@@ -122,14 +124,25 @@ def learning_curves_compared(
 
 
 def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int = 1) -> None:
-    """experiment=transfer: one panel per scenario, one group of bars per row (source evaluated there, adapted,
-    hybrid from scratch, oracle), p1 and p2 side by side at one noise level and K, in percent; error bars: std
-    over seeds. ``table`` has the row levels scenario and row (and K when several were evaluated)."""
+    """experiment=transfer and field: one panel per scenario, one group of bars per row (source evaluated there,
+    adapted with each objective, from scratch, oracle, a baseline: as many as the table has), p1 and p2 side by
+    side at one noise level and K, in percent; error bars: std over seeds. ``table`` has the row levels scenario
+    and row (and K when several were evaluated)."""
     if K_LEVEL in table.index.names:
         table = table.xs(k, level=K_LEVEL)
     params = [p for n, p, s in table.columns if s == "mean" and n == noise]
     scenarios = list(dict.fromkeys(table.index.get_level_values("scenario")))
-    fig, axes = panels(len(scenarios), width=3.6 + 1 / len(scenarios))
+    # each panel as wide as its rows (a one-row panel as three), so every group of bars has the same width
+    slots = [max(len(table.xs(s, level="scenario")), 3) for s in scenarios]
+    fig, axes = plt.subplots(
+        1,
+        len(scenarios),
+        figsize=(GROUP_INCHES * sum(slots) + 1.2, 4.2),
+        sharey=True,
+        squeeze=False,
+        layout="constrained",
+        gridspec_kw={"width_ratios": slots},
+    )
     width = 0.8 / max(len(params), 1)
     for ax, scenario in zip(axes[0], scenarios):
         sub = table.xs(scenario, level="scenario")
