@@ -21,11 +21,12 @@ hybrid-sysid experiment=noise_robust hydra.sweep.dir=$out/noise_robust
 hybrid-sysid experiment=baselines data.measurement=paper hydra.sweep.dir=$out/baselines_paper
 hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01 \
   objective=labelled,hybrid_bandpass,hybrid_eiv hydra.sweep.dir=$out/noise_robust_paper
-# the rest of that grid (its "All rows" table merges the three: hybrid-sysid-report A B C out=DIR)
+# the rest of that grid (its "All rows" table merges the three: merge= in the report below)
 hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.0 hydra.sweep.dir=$out/noise_robust_paper_clean
 hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01 objective=hybrid \
   hydra.sweep.dir=$out/noise_robust_paper_hybrid
 hybrid-sysid experiment=tuned hydra.sweep.dir=$out/tuned   # pip install -e ".[search]"
 hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
   $out/paper $out/transfer $out/field $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
-  $out/tuned exclude='*/search/*' results=docs/results.md notes=docs/results_notes.md reproduction=true
+  $out/tuned exclude='*/search/*' results=docs/results.md notes=docs/results_notes.md reproduction=true \
+  merge=$out/noise_robust_paper,$out/noise_robust_paper_clean,$out/noise_robust_paper_hybrid

@@ -222,3 +222,15 @@ def test_latex_marks_escapes_and_notes(known):
     assert r"$|m_a - m_b| > s_a + s_b$" in tex and "$^\\dagger$" in tex and r"\caption{" in tex
     renamed = table.rename(index={"hybrid": "ls_window"})
     assert r"ls\_window &" in to_latex(renamed)
+
+
+def test_seeds_that_agree_have_the_value_as_their_interval():
+    """A baseline without randomness gives every seed the same number: scipy's interval would multiply 0 by an
+    infinite t and warn; the interval of a constant is the constant."""
+    import warnings
+
+    from hybrid_sysid.report.tables import t_interval
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert t_interval([2.5, 2.5, 2.5]) == (2.5, 2.5)

@@ -41,6 +41,9 @@ usage: {PROG} PATH... [key=value ...]
   results=FILE          write a results page (one section per PATH, figures in FILE's folder/figures/) instead
                         of the summary files, which are still written when out= is given
   notes=MD              with results=: a hand-written markdown file placed after the page's header
+  merge=DIR,DIR,...     with results=: one more section whose table merges these sweeps ("All rows"), after the
+                        section of the first DIR; repeatable. Every section names, under its heading, the command
+                        that re-creates its sweeps, the commit and the CPU of their runs
 
 Exit status: 0 every run completed; 1 some failed or are unreadable (everything is still written); 2 a bad
 argument, a path without runs, or compare= naming a key that is not swept.
@@ -50,7 +53,8 @@ examples:
   {PROG} outputs/multirun/a outputs/multirun/b split=val compare=objective latex=true out=report
   {PROG} outputs/multirun/tuned exclude='*/search/*' results=docs/results.md reproduction=true
 """
-VALUE_KEYS = ("split", "metric", "out", "compare", "exclude", "notes", "results")
+VALUE_KEYS = ("split", "metric", "out", "compare", "exclude", "notes", "results", "merge")
+REPEATABLE = ("exclude", "merge")
 FLAG_KEYS = ("latex", "reproduction")
 KEYS = VALUE_KEYS + FLAG_KEYS
 
@@ -82,7 +86,7 @@ def _key_values(argv: list[str]) -> list[str]:
 
 def parse_args(argv) -> Namespace:
     """PATHs and key=value options -> the report's settings, each checked (UsageError)."""
-    args = Namespace(paths=[], split="test", metric="mean_rel_dev", out=None, compare=None, exclude=[])
+    args = Namespace(paths=[], split="test", metric="mean_rel_dev", out=None, compare=None, exclude=[], merge=[])
     args.latex = args.reproduction = False
     args.notes = args.results = None
     given = set()
@@ -93,7 +97,7 @@ def parse_args(argv) -> Namespace:
                 raise UsageError(f"unknown key {key!r} in {arg!r}; allowed keys: {', '.join(KEYS)}")
             args.paths.append(Path(arg))
             continue
-        if key in given and key != "exclude":
+        if key in given and key not in REPEATABLE:
             raise UsageError(f"{key} is given twice; give it once")
         given.add(key)
         if key in FLAG_KEYS:
@@ -103,6 +107,12 @@ def parse_args(argv) -> Namespace:
         elif key == "exclude":  # repeatable, or a list: exclude=[a,b]
             items = value[1:-1].split(",") if value.startswith("[") and value.endswith("]") else [value]
             args.exclude += [item.strip() for item in items if item.strip()]
+        elif key == "merge":  # repeatable, each a group of sweeps: merge=a,b or merge=[a,b]
+            items = value[1:-1] if value.startswith("[") and value.endswith("]") else value
+            group = [Path(item.strip()) for item in items.split(",") if item.strip()]
+            if len(group) < 2:
+                raise UsageError(f"merge = {value!r} names {len(group)} sweep; give two or more: merge=DIR,DIR")
+            args.merge.append(group)
         elif key == "split" and value not in SPLITS:
             raise UsageError(f"split = {value!r} is not allowed: one of {', '.join(SPLITS)}")
         elif key == "metric" and value not in METRICS:
@@ -113,6 +123,8 @@ def parse_args(argv) -> Namespace:
             setattr(args, key, Path(value) if key in ("out", "notes", "results") else value)
     if not args.paths:
         raise UsageError(f"no PATH given; usage: {PROG} PATH... [key=value ...] (see --help)")
+    if args.merge and args.results is None:
+        raise UsageError("merge= adds a section to a results page: give results=FILE too")
     return args
 
 
@@ -130,7 +142,8 @@ def main(argv=None) -> int:
         args = parse_args(argv)
     except UsageError as exc:
         return _error(str(exc))
-    for path in args.paths:  # each path must contribute, so a typo is not silently merged away
+    # each path must contribute, so a typo is not silently merged away
+    for path in [*args.paths, *(p for group in args.merge for p in group)]:
         if not path.exists():
             return _error(f"path does not exist: {path}")
         if not find_runs([path]):
@@ -172,6 +185,7 @@ def main(argv=None) -> int:
                 reproduction=args.reproduction,
                 notes=args.notes,
                 exclude=args.exclude,
+                merges=args.merge,
             )
             print(text, end="")
             bad = max(bad, n_bad)

@@ -32,6 +32,9 @@ TAIL = [
     "steps",
     "train_seconds",
     "threads",
+    "git_commit",
+    "git_dirty",
+    "cpu",
 ]
 RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
 
@@ -109,6 +112,10 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
             "steps": rec.get("steps"),
             "train_seconds": rec.get("train_seconds"),
             "threads": rec.get("threads"),
+            # the code and the processor that made the numbers (absent from records made before they were kept)
+            "git_commit": rec.get("git_commit"),
+            "git_dirty": rec.get("git_dirty"),
+            "cpu": rec.get("cpu"),
         }
         overrides = _overrides(rec.get("overrides"))
         results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
@@ -168,7 +175,9 @@ def collect(paths) -> pd.DataFrame:
     """Long form: one row per job x split x noise_std x windows x parameter; a failed or unreadable job is one
     row with NaN metrics. Columns: run, status, error, seed, one per override key (strings, "" if unset), split,
     noise_std, windows, parameter, mean_rel_dev, std_rel_dev, n, steps, train_seconds, threads (torch's thread
-    count, empty for records written before it was recorded)."""
+    count), git_commit and git_dirty (the checkout the run's code came from, and whether its tracked files differed
+    from that commit), cpu (the processor's model name); the last four are empty for records written before they
+    were recorded."""
     return load_runs(paths)[1]
 
 

@@ -83,6 +83,8 @@ def t_interval(values) -> tuple[float, float]:
     v = np.asarray(values, dtype=float)
     if len(v) < 2:
         return math.nan, math.nan
+    if np.ptp(v) == 0:  # seeds that agree (a baseline without randomness): the interval is the value itself
+        return float(v[0]), float(v[0])
     low, high = stats.t.interval(CONFIDENCE, len(v) - 1, loc=v.mean(), scale=stats.sem(v))
     return float(low), float(high)
 

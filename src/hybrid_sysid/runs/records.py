@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import json
 import logging
+import platform
+from functools import lru_cache
 from pathlib import Path
 
 from hybrid_sysid.core.files import write_json_atomic
@@ -52,6 +54,22 @@ def run_record(
         "results": results or [],
         **extra,
     }
+
+
+@lru_cache(maxsize=1)
+def cpu_model() -> str | None:
+    """The processor's model name, as /proc/cpuinfo's "model name" (Linux) or else platform.processor() gives it;
+    None when neither names it. Recorded because the last digits of a run's numbers depend on the kind of CPU
+    (docs/reliability.md); read once per process."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                key, sep, value = line.partition(":")
+                if sep and key.strip() == "model name" and value.strip():
+                    return " ".join(value.split())
+    except OSError:  # not Linux
+        pass
+    return platform.processor().strip() or None
 
 
 def read_record(run_dir: Path) -> dict:

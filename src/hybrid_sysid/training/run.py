@@ -21,7 +21,7 @@ from omegaconf import DictConfig
 from hybrid_sysid.config import validate
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import ConfigError
-from hybrid_sysid.runs.records import run_record
+from hybrid_sysid.runs.records import cpu_model, run_record
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.build import (
     build_baseline,
@@ -34,7 +34,7 @@ from hybrid_sysid.training.build import (
 )
 from hybrid_sysid.training.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
 from hybrid_sysid.training.evaluation import by_road_class, class_table, console_table, score, write_outputs
-from hybrid_sysid.training.tracking import Naming, build_loggers, finish, hyperparameters
+from hybrid_sysid.training.tracking import Naming, build_loggers, finish, git_state, hyperparameters
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -204,8 +204,21 @@ def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, logg
     write_outputs(run.path, predictions, pd.DataFrame(curve_rows, columns=CURVE_COLUMNS))
     classes = by_road_class(predictions)
     fields = {k: v() if callable(v) else v for k, v in fields.items()}
+    # the code and the processor that made the numbers (report/provenance.py names them under each table); both
+    # are read once per process, so a record is no slower to write
+    commit, dirty = git_state() or (None, None)
     record = run_record(
-        "completed", overrides, cfg.seed, steps=step, results=results, threads=threads, by_road_class=classes, **fields
+        "completed",
+        overrides,
+        cfg.seed,
+        steps=step,
+        results=results,
+        threads=threads,
+        by_road_class=classes,
+        git_commit=commit,
+        git_dirty=dirty,
+        cpu=cpu_model(),
+        **fields,
     )
     stop.check()  # the last safe point before the run is final
     run.write_record(record)
