@@ -175,6 +175,15 @@ def notes(tmp_path: Path) -> Path:
     return path
 
 
+def test_every_generated_section_of_the_results_page_names_its_commit_and_command():
+    """docs/results.md as committed: a table whose section does not name the command, or whose runs' commit is
+    not recorded, fails here (regenerate the page: docs/make_results.sh)."""
+    text = (REPO / "docs" / "results.md").read_text(encoding="utf-8")
+    assert generated_sections(text), "docs/results.md has no generated section"
+    missing = sections_without_provenance(text)
+    assert missing == [], "regenerate docs/results.md (docs/make_results.sh):\n" + "\n".join(missing)
+
+
 def test_a_runs_record_holds_its_checkouts_commit_and_its_cpu(tiny_run):
     record = json.loads((tiny_run / "metrics.json").read_text())
     git = subprocess.run(["git", "rev-parse", "--is-inside-work-tree"], cwd=REPO, capture_output=True, text=True)
