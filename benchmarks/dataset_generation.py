@@ -30,6 +30,7 @@ import time
 from pathlib import Path
 
 import numpy as np
+from machine import load_average
 
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.physics import QuarterCar, relative_states, road_profiles, simulate, wave_amplitudes, wave_numbers
@@ -282,14 +283,6 @@ def main():
         png = Path(__file__).parent / "dataset_generation_scaling.png"
         scaling(png)
         print(f"scaling plot: {png}")
-
-
-def load_average() -> str:
-    try:
-        with open("/proc/loadavg") as f:
-            return f.read().split()[0]
-    except OSError:
-        return "unknown"
 
 
 if __name__ == "__main__":

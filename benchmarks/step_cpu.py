@@ -22,11 +22,11 @@ the matmul rate is the median of timed (512 x 512) @ (512 x 512) float32 product
 from __future__ import annotations
 
 import argparse
-import platform
 import time
 
 import numpy as np
 import torch
+from machine import cpu_name, load_average
 from torch import nn
 from torch.utils.flop_counter import FlopCounterMode
 
@@ -35,17 +35,6 @@ from hybrid_sysid.model.objectives import LabelledObjective
 
 P_MIN, P_MAX = [615.0 / 200, 98935.0 / 200], [615.0 / 50, 98935.0 / 50]  # data=default's prior (${p_prior:...})
 P_SCALE = [(a + b) / 2 for a, b in zip(P_MIN, P_MAX)]
-
-
-def cpu_name() -> str:
-    try:
-        with open("/proc/cpuinfo") as f:
-            for line in f:
-                if line.startswith("model name"):
-                    return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 class Conv2dAs1d(nn.Module):
@@ -170,7 +159,7 @@ def main() -> None:
             times[name].append(step())
     flops, rate = step_flops(args.batch), matmul_rate()
     plain = float(np.median(times["plain"]))
-    print(f"{cpu_name()}, 1 thread, batch {args.batch}, {args.rounds} rounds, load average {open_load()}")
+    print(f"{cpu_name()}, 1 thread, batch {args.batch}, {args.rounds} rounds, load average {load_average()}")
     print(f"a step: {flops / 1e9:.3f} GFLOP (convolutions and matmuls, forward and backward)")
     print(f"float32 matmul (512^3) on one thread: {rate / 1e9:.1f} GFLOP/s")
     print("| variant | step [ms] | against plain | FLOP rate | of the matmul rate |")
@@ -178,14 +167,6 @@ def main() -> None:
     for name in names:
         t = float(np.median(times[name]))
         print(f"| {name} | {1000 * t:.2f} | {t / plain:.3f} | {flops / t / 1e9:.1f} GFLOP/s | {flops / t / rate:.0%} |")
-
-
-def open_load() -> str:
-    try:
-        with open("/proc/loadavg") as f:
-            return f.read().split()[0]
-    except OSError:
-        return "unknown"
 
 
 if __name__ == "__main__":
