@@ -101,7 +101,13 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         kwargs["profiler"] = build_profiler(t.profiler, run_dir)
     kwargs.update(t.get("extra", {}))
     kwargs.update(overrides)
-    return L.Trainer(**kwargs)
+    trainer = L.Trainer(**kwargs)
+    if kwargs["deterministic"]:
+        # deterministic mode also fills every new tensor with NaN, against ops that read memory they did not
+        # write; none of a run's does (tests/model/test_deterministic_fill.py: the same weights either way), and
+        # the fill costs about 5% of a fast_cnn step (benchmarks/README.md, the main job)
+        torch.utils.deterministic.fill_uninitialized_memory = False
+    return trainer
 
 
 def progress_bar_on(setting) -> bool:
