@@ -87,12 +87,14 @@ def write_summary(
     latex: bool = False,
     compare: str | None = None,
     exclude=(),
+    on_table=None,
 ) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Write sweep_dir/summary.csv, summary.md, with ``latex`` summary.tex, and figures/ from the runs at or
     below paths (default: sweep_dir), but those whose name (relative to the common parent, e.g. "0/search/3")
     matches a glob pattern of ``exclude``. ``compare``: the row key whose values the marks compare (default:
     objective when swept). Returns (long form, table); the table's attrs["paired"] holds the per-recording
-    deviations its marks test (tables.paired_deviations)."""
+    deviations its marks test (tables.paired_deviations). ``on_table(df, table)`` is called once the summary
+    files are written, before the figures are drawn (a sweep prints its table there)."""
     sweep_dir = Path(sweep_dir)
     root, df = load_runs(sweep_dir if paths is None else paths, exclude)
     table = tested_table(df, root, split, metric)
@@ -120,6 +122,8 @@ def write_summary(
             sweep_dir / "summary.tex",
             lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"),
         )
+    if on_table is not None:
+        on_table(df, table)
     if figures:
         out = sweep_dir / "figures"
         out.mkdir(exist_ok=True)

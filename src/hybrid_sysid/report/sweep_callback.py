@@ -34,12 +34,6 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.core.files import write_atomic
-from hybrid_sysid.report.paper import write_reproduction
-from hybrid_sysid.report.summary import threads_warning, write_summary
-from hybrid_sysid.report.sweep_figures import transfer_figure, tuning_figure
-from hybrid_sysid.report.tables import to_markdown
-from hybrid_sysid.report.tuning import tuning_markdown
-from hybrid_sysid.training.tracking import log_sweep
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -86,17 +80,29 @@ class SweepSummary(Callback):
         print(line, flush=True)
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
+        # imported here: every parallel worker unpickles this callback for on_job_end and needs none of them
+        # (scipy.stats and matplotlib, about a second of CPU per worker: benchmarks/README.md)
+        from hybrid_sysid.report.paper import write_reproduction
+        from hybrid_sysid.report.summary import threads_warning, write_summary
+        from hybrid_sysid.report.sweep_figures import transfer_figure, tuning_figure
+        from hybrid_sysid.report.tables import to_markdown
+        from hybrid_sysid.report.tuning import tuning_markdown
+        from hybrid_sysid.training.tracking import log_sweep
+
         sweep_dir = Path(config.hydra.sweep.dir)
+
+        def show(df, table) -> None:  # the table as soon as it is written; the sweep's figures after it
+            print(f"\nmean relative deviation on the test split [%], mean ± std over seeds ({sweep_dir}):\n")
+            print(to_markdown(table, compare=self.compare), flush=True)
+            warning = threads_warning(df)
+            if warning:
+                log.warning(warning)
+
         try:
-            df, table = write_summary(sweep_dir, compare=self.compare, exclude=self.exclude)
+            df, table = write_summary(sweep_dir, compare=self.compare, exclude=self.exclude, on_table=show)
         except Exception as exc:  # Hydra would turn it into a warning and exit 0: the sweep must fail instead
             log.error("sweep summary not written: %s: %s", type(exc).__name__, exc)
             raise SystemExit(f"no summary written in {sweep_dir} ({type(exc).__name__}: {exc})") from exc
-        print(f"\nmean relative deviation on the test split [%], mean ± std over seeds ({sweep_dir}):\n")
-        print(to_markdown(table, compare=self.compare))
-        warning = threads_warning(df)
-        if warning:
-            log.warning(warning)
         if self.transfer_figure and "scenario" in table.index.names:
             write_atomic(sweep_dir / "figures" / "transfer.png", lambda p: transfer_figure(table, p))
         if self.tuning_table:
