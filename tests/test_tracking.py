@@ -286,6 +286,7 @@ def test_a_tracked_sweep_as_a_user_runs_it(tmp_path, tiny_cache):
     env = {**os.environ, "HYBRID_SYSID_CACHE": str(tiny_cache), "HYDRA_FULL_ERROR": "0"}
     args = ["-m", "objective=labelled,hybrid", "data=tiny", "trainer=debug", "trainer.progress_bar=false"]
     args += ["logger=[mlflow,tensorboard]", f"paths.root={tmp_path / 'outputs'}", f"hydra.sweep.dir={tmp_path / 'sw'}"]
+    args += ["run_figures=true"]  # a sweep's jobs draw none by default
     proc = subprocess.run(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,

@@ -22,7 +22,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, console_main, run_job
+from hybrid_sysid.cli.job import Preflight, console_main, draws_figures, run_job
 from hybrid_sysid.config import Config, validate
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.runs.rundir import RunDir
@@ -100,7 +100,7 @@ def hydra_main(composed: DictConfig) -> dict:
         sweep_dir=Path(hc.sweep.dir) if multirun else None,
         again="run the same command again to evaluate it",
     )
-    if record.get("status") == "completed":
+    if record.get("status") == "completed" and draws_figures(composed.get("run_figures", "auto"), multirun):
         from hybrid_sysid.report.run_figures import write_run_figures
 
         write_run_figures(out_dir)

@@ -14,7 +14,7 @@ from argparse import Namespace
 from pathlib import Path
 
 from hybrid_sysid.data.splits import SPLITS
-from hybrid_sysid.report.collect import find_runs
+from hybrid_sysid.report.collect import find_runs, load_runs
 from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.report.results_page import write_results
 from hybrid_sysid.report.summary import write_summary
@@ -36,6 +36,8 @@ usage: {PROG} PATH... [key=value ...]
   exclude=GLOB          leave out runs whose name (relative to the paths' common parent) matches; repeatable,
                         e.g. exclude='*/search/*' (experiment=tuned's trials)
   latex=true            also write summary.tex (a booktabs table)
+  run_figures=true      also draw each completed run's own figures (figures/ in its directory), which a sweep's
+                        jobs do not draw by default
   reproduction=true     also write reproduction.md: the paper's figures beside ours (with results=: a section
                         per PATH in the page)
   results=FILE          write a results page (one section per PATH, figures in FILE's folder/figures/) instead
@@ -55,7 +57,7 @@ examples:
 """
 VALUE_KEYS = ("split", "metric", "out", "compare", "exclude", "notes", "results", "merge")
 REPEATABLE = ("exclude", "merge")
-FLAG_KEYS = ("latex", "reproduction")
+FLAG_KEYS = ("latex", "reproduction", "run_figures")
 KEYS = VALUE_KEYS + FLAG_KEYS
 
 
@@ -87,7 +89,7 @@ def _key_values(argv: list[str]) -> list[str]:
 def parse_args(argv) -> Namespace:
     """PATHs and key=value options -> the report's settings, each checked (UsageError)."""
     args = Namespace(paths=[], split="test", metric="mean_rel_dev", out=None, compare=None, exclude=[], merge=[])
-    args.latex = args.reproduction = False
+    args.latex = args.reproduction = args.run_figures = False
     args.notes = args.results = None
     given = set()
     for arg in _key_values(list(argv)):
@@ -193,8 +195,29 @@ def main(argv=None) -> int:
                 f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and {args.results.parent / 'figures'}/",
                 file=sys.stderr,
             )
+        if args.run_figures:
+            drawn = draw_run_figures(args.paths, args.exclude)
+            print(f"drew the figures of {drawn} runs (figures/ in each run directory)", file=sys.stderr)
     except ValueError as exc:  # e.g. compare= naming a key that is not swept
         return _error(str(exc))
     except OSError as exc:  # e.g. out= on a read-only file system: the runs themselves are untouched
         return _error(f"cannot write the report: {type(exc).__name__}: {exc}")
     return 1 if bad else 0
+
+
+def draw_run_figures(paths, exclude=()) -> int:
+    """Each completed run's figures under ``paths`` (but runs matching ``exclude``); the number drawn. A run
+    without predictions (e.g. a chain's parent) has nothing to draw and is skipped, with a progress line every
+    ten runs on stderr."""
+    from hybrid_sysid.report.run_figures import write_run_figures
+
+    root, df = load_runs(paths, exclude)
+    runs = df[df.status == "completed"].drop_duplicates("run").run
+    drawn = 0
+    for i, name in enumerate(runs, start=1):
+        if (root / name / "predictions.csv").is_file():
+            write_run_figures(root / name)
+            drawn += 1
+        if i % 10 == 0:
+            print(f"run figures: {i} / {len(runs)} runs", file=sys.stderr, flush=True)
+    return drawn

@@ -19,7 +19,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, console_main, run_job
+from hybrid_sysid.cli.job import Preflight, console_main, draws_figures, run_job
 from hybrid_sysid.config import validate
 from hybrid_sysid.runs.rundir import RunDir
 
@@ -79,7 +79,8 @@ def hydra_main(cfg: DictConfig) -> Any:
         sweep_dir=sweep_dir,
         again=f"continue it with resume={run_dir} (a sweep: run the same command again)",
     )
-    if cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
+    drawn = draws_figures(cfg.get("run_figures", "auto"), multirun)
+    if drawn and cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
         _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
         log_run_figures(run_dir)  # into the job's MLflow run, now that they exist
     return record

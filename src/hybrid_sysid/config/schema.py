@@ -132,6 +132,7 @@ class Config:
     seed: int = 0
     resume: Optional[str] = None
     init_from: Optional[str] = None  # a run directory: start from its best weights
+    run_figures: Any = "auto"  # a run's figures/: true, false, or auto (a single run yes, a sweep's jobs no)
     data: DataConfig = MISSING
     road: RoadConfig = MISSING
     noise: NoiseConfig = MISSING

@@ -53,6 +53,9 @@ def validate(cfg: DictConfig) -> None:
         if not (math.isfinite(value) and value > 0):
             bad(f"car.{key}", value, "must be finite and > 0")
     _check_task(cfg)
+    figures = cfg.get("run_figures", "auto")
+    if not (isinstance(figures, bool) or figures == "auto"):
+        bad("run_figures", figures, "true, false or auto (a single run's figures, not a sweep job's)")
     spec = DatasetSpec.from_config(cfg)
     spec.validate()
     for s in cfg.noise.eval_std:
