@@ -64,15 +64,16 @@ class LearningCurves(L.Callback):
     relative deviations on the training split's first ``train_limit`` recordings (clean) and on the test split
     at each of ``test_noise``, through the model's ``predict_split`` on the data module's fixed windows.
     ``rows`` holds one row per parameter and evaluation (``CURVE_COLUMNS``), with the optimiser step and the
-    training time of ``clock``; the same rows go to the trainer's loggers, if any. A curve point evaluates 1,000 +
-    400 per noise level windows on the default data, several times a validation's cost, so a sweep may take fewer
-    points than it validates."""
+    training time of ``clock``; the same rows go to the trainer's loggers, if any. A curve point evaluates 400 +
+    400 per noise level windows on the default data (as many training windows as test recordings: a curve needs
+    the trend, and a point costs CPU the peer script of benchmarks/peer.py does not spend), several times a
+    validation's cost, so a sweep may take fewer points than it validates."""
 
     def __init__(
         self,
         clock: TrainingClock,
         test_noise: Sequence[float],
-        train_limit: int = 1000,
+        train_limit: int = 400,
         every_n_steps: int | None = None,
     ):
         self.clock, self.train_limit, self.every_n_steps = clock, train_limit, every_n_steps
