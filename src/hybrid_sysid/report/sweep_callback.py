@@ -22,9 +22,11 @@ elapsed time and an estimate of the time left (elapsed / done x remaining). The 
 from __future__ import annotations
 
 import fcntl
+import importlib
 import json
 import logging
 import math
+import threading
 import time
 from pathlib import Path
 from typing import Any
@@ -36,6 +38,29 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.core.files import write_atomic
 
 log = logging.getLogger("hybrid_sysid")
+# what the sweep's end needs (scipy.stats, matplotlib, pandas: about 2 s of imports). The parent loads them in a
+# thread while the jobs run, after its launcher is under way, so the end does not wait for them: about 1% of the
+# main job (benchmarks/README.md). A sweep that ends first cancels the load and imports them itself.
+REPORT_MODULES = (
+    "hybrid_sysid.report.paper",
+    "hybrid_sysid.report.summary",
+    "hybrid_sysid.report.sweep_figures",
+    "hybrid_sysid.report.tables",
+    "hybrid_sysid.report.tuning",
+    "hybrid_sysid.training.tracking",
+)
+PRELOAD_AFTER = 5.0  # seconds: Hydra's launcher has imported its own modules and started the jobs by then
+_preload: dict = {}  # the thread and its cancel event; module state, as the callback itself is pickled to workers
+
+
+def _load_report_modules(cancel: threading.Event) -> None:
+    if cancel.wait(PRELOAD_AFTER):
+        return
+    try:
+        for name in REPORT_MODULES:
+            importlib.import_module(name)
+    except Exception:  # noqa: BLE001 - imported again at the sweep's end, where its error is reported
+        pass
 
 
 class SweepSummary(Callback):
@@ -63,6 +88,10 @@ class SweepSummary(Callback):
         except OSError:  # no progress lines then; the sweep itself reports the directory's problem
             pass
         print(start_line(config, jobs, sweep_dir), flush=True)
+        cancel = threading.Event()
+        thread = threading.Thread(target=_load_report_modules, args=(cancel,), daemon=True)
+        thread.start()
+        _preload.update(thread=thread, cancel=cancel)
 
     def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
         self._job_start = time.time()
@@ -81,7 +110,11 @@ class SweepSummary(Callback):
 
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         # imported here: every parallel worker unpickles this callback for on_job_end and needs none of them
-        # (scipy.stats and matplotlib, about a second of CPU per worker: benchmarks/README.md)
+        # (scipy.stats and matplotlib, about a second of CPU per worker: benchmarks/README.md); the loading
+        # thread is done first, so no module is imported by two threads at once
+        if _preload:
+            _preload["cancel"].set()
+            _preload.pop("thread").join()
         from hybrid_sysid.report.paper import write_reproduction
         from hybrid_sysid.report.summary import threads_warning, write_summary
         from hybrid_sysid.report.sweep_figures import transfer_figure, tuning_figure
