@@ -8,6 +8,7 @@ objective, val/rel_dev otherwise; trainer.monitor).
 
 from __future__ import annotations
 
+import gc
 import logging
 import sys
 from pathlib import Path
@@ -46,18 +47,29 @@ def run_task(
 ) -> dict:
     """The job's task (``task``): imported here, so a sweep's parent process, which only composes and launches
     jobs, loads no torch."""
+    if cfg.task == "transfer":
+        from hybrid_sysid.experiments.transfer import run_chain as chain
+    elif cfg.task == "tuned":
+        from hybrid_sysid.experiments.tuned import run_tuned as chain
+    else:
+        from hybrid_sysid.training.run import train
+    freeze_imports()
     if cfg.task in ("transfer", "tuned"):  # a chain of runs in sub-directories, each with its own record
-        if cfg.task == "transfer":
-            from hybrid_sysid.experiments.transfer import run_chain as chain
-        else:
-            from hybrid_sysid.experiments.tuned import run_tuned as chain
         result = chain(cfg, run_dir, overrides)
         RunDir(run_dir).drop_stale_record()  # an earlier interruption's record: every run it named is done now
         return result
-    from hybrid_sysid.training.run import train
-
     # a single run's config was validated by the preflight; a sweep's job has had no preflight
     return train(cfg, run_dir, overrides, experiment=experiment, run_name=run_name, checked=not multirun)
+
+
+def freeze_imports() -> None:
+    """torch, Lightning and their imports leave ~500,000 long-lived objects that every full garbage collection
+    walks again: during a job, and when a sweep's worker process ends, which held the sweep's exit back by ~1.5 s
+    (benchmarks/README.md). Collected once and frozen (``gc.freeze``), they are skipped from then on; what the
+    job allocates afterwards is collected as usual, and the collection first frees whatever an earlier job in
+    the same worker left, so nothing of it is kept."""
+    gc.collect()
+    gc.freeze()
 
 
 @hydra.main(version_base="1.3", config_path=config.CONF_DIR, config_name="config")
