@@ -10,16 +10,20 @@ DataLoaders), network and objectives (plain nn.Modules), and nothing else of it:
 run directories, records, checkpoints, figures or summary; three processes of one torch thread each run the nine
 jobs, as the main job's launcher does.
 
-    python benchmarks/peer.py peer            # the peer alone: its table and time
-    python benchmarks/peer.py compare         # both, one after the other, and their ratio (benchmarks/README.md)
+    python benchmarks/peer.py peer                # the peer alone: its table and time
+    python benchmarks/peer.py compare [--rounds 2]  # both, alternating, and their ratio (benchmarks/README.md)
+
+compare runs the two in the order project, peer, peer, project, ... (--rounds pairs), so a drift of the machine's
+speed over the minutes they take touches both alike; the ratio is that of their summed times. The peer's jobs
+also report where their time went: start (imports, data), fit (training with its validations) and evaluation.
 """
 
 from __future__ import annotations
 
 import argparse
+import json
 import math
 import multiprocessing as mp
-import platform
 import subprocess
 import sys
 import tempfile
@@ -28,6 +32,7 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
+from machine import cpu_name, load_average
 
 OBJECTIVES, SEEDS = ("labelled", "hybrid", "combined"), (0, 1, 2)
 STEPS, EVAL_EVERY, BATCH, LR, WEIGHT_DECAY, WARMUP = 1300, 100, 64, 2e-2, 1e-2, 0.3
@@ -35,8 +40,10 @@ NOISE, WINDOWS = (0.0, 0.003, 0.01, 0.03, 0.1), (1, 8)
 CACHE = "outputs/.cache"
 
 
-def job(args: tuple[str, int]) -> list[dict]:
-    """One objective and seed: train, select, score. Rows of the mean relative deviation per noise, K, parameter."""
+def job(args: tuple[str, int]) -> tuple[list[dict], dict]:
+    """One objective and seed: train, select, score. Rows of the mean relative deviation per noise, K, parameter,
+    and the seconds of its phases."""
+    started = time.perf_counter()
     import torch
 
     from hybrid_sysid.data.datamodule import QuarterCarDataModule
@@ -49,6 +56,7 @@ def job(args: tuple[str, int]) -> list[dict]:
     torch.manual_seed(seed)
     np.random.seed(seed)
     torch.use_deterministic_algorithms(True)
+    torch.utils.deterministic.fill_uninitialized_memory = False  # as the project's runs: the same computation
     spec = DatasetSpec()  # data=default
     # the network's bounds and the label scale: p = (C3, K3) / m3 over the seat masses (${p_prior:...})
     p_min, p_max = spec.car.parameters(spec.m3_max), spec.car.parameters(spec.m3_min)
@@ -77,6 +85,7 @@ def job(args: tuple[str, int]) -> list[dict]:
         return value
 
     best, best_state = math.inf, None
+    fit_start = time.perf_counter()
     for step, batch in enumerate(dm.train_dataloader(), start=1):
         loss = objective(net(batch["signals"]), batch)
         opt.zero_grad()
@@ -89,6 +98,7 @@ def job(args: tuple[str, int]) -> list[dict]:
                 best, best_state = value, {k: v.clone() for k, v in net.state_dict().items()}
         if step == STEPS:
             break
+    fit_end = time.perf_counter()
     net.load_state_dict(best_state)
     net.eval()
     rows = []
@@ -104,17 +114,18 @@ def job(args: tuple[str, int]) -> list[dict]:
                         {"objective": objective_name, "seed": seed, "noise_std": std, "windows": k,
                          "parameter": name, "mean_rel_dev": float(dev[:, i].mean())}
                     )  # fmt: skip
-    return rows
+    phases = {"start": fit_start - started, "fit": fit_end - fit_start, "evaluation": time.perf_counter() - fit_end}
+    return rows, phases
 
 
-def peer() -> tuple[pd.DataFrame, float]:
-    """The nine jobs, three at a time (spawned processes, as joblib's loky workers). Returns the rows and the
-    wall time."""
+def peer() -> tuple[pd.DataFrame, float, pd.DataFrame]:
+    """The nine jobs, three at a time (spawned processes, as joblib's loky workers). Returns the rows, the wall
+    time and each job's phases."""
     start = time.perf_counter()
     with mp.get_context("spawn").Pool(3) as pool:
         done = pool.map(job, [(o, s) for o in OBJECTIVES for s in SEEDS], chunksize=1)
-    rows = [row for job_rows in done for row in job_rows]
-    return pd.DataFrame(rows), time.perf_counter() - start
+    rows = [row for job_rows, _ in done for row in job_rows]
+    return pd.DataFrame(rows), time.perf_counter() - start, pd.DataFrame([phases for _, phases in done])
 
 
 def table(rows: pd.DataFrame) -> pd.DataFrame:
@@ -125,7 +136,8 @@ def table(rows: pd.DataFrame) -> pd.DataFrame:
 
 
 def project(sweep_dir: Path) -> tuple[pd.DataFrame, float]:
-    """``hybrid-sysid experiment=robustness`` into sweep_dir; its test rows and the wall time."""
+    """``hybrid-sysid experiment=robustness`` into sweep_dir; its test rows and the wall time (fit_seconds in
+    each job's record: training with its validations and learning-curve points)."""
     start = time.perf_counter()
     subprocess.run(
         [sys.executable, "-m", "hybrid_sysid", "experiment=robustness", f"hydra.sweep.dir={sweep_dir}"],
@@ -136,43 +148,51 @@ def project(sweep_dir: Path) -> tuple[pd.DataFrame, float]:
     seconds = time.perf_counter() - start
     runs = pd.read_csv(sweep_dir / "summary.csv")
     test = runs[(runs.split == "test") & (runs.status == "completed")]
+    fit = [json.loads(f.read_text())["fit_seconds"] for f in sorted(sweep_dir.glob("*/metrics.json"))]
+    print(f"  project jobs' fit (median of {len(fit)}): {np.median(fit):.1f} s", flush=True)
     return test[["objective", "seed", "noise_std", "windows", "parameter", "mean_rel_dev"]], seconds
-
-
-def cpu() -> str:
-    try:
-        for line in Path("/proc/cpuinfo").read_text().splitlines():
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("what", choices=("peer", "compare"))
-    what = parser.parse_args().what
+    parser.add_argument("--rounds", type=int, default=2, help="compare: pairs of runs, in the order ABBA...")
+    args = parser.parse_args()
     from hybrid_sysid.data.cache import get_dataset
     from hybrid_sysid.data.spec import DatasetSpec
 
     get_dataset(DatasetSpec(), CACHE)  # both sides start from the cached dataset
-    print(f"CPU: {cpu()}, {mp.cpu_count()} cores")
-    if what == "compare":
-        with tempfile.TemporaryDirectory() as tmp:
-            summary, project_seconds = project(Path(tmp) / "robustness")
-        print(f"project (hybrid-sysid experiment=robustness): {project_seconds:.1f} s")
-    rows, seconds = peer()
-    print(f"peer (plain PyTorch): {seconds:.1f} s")
+    print(f"CPU: {cpu_name()}, {mp.cpu_count()} cores, load average {load_average()}", flush=True)
+    order = (
+        ["peer"]
+        if args.what == "peer"
+        else [s for i in range(args.rounds) for s in ("project", "peer")[:: 1 - 2 * (i % 2)]]
+    )
+    times = {"project": [], "peer": []}
+    for side in order:
+        if side == "project":
+            with tempfile.TemporaryDirectory() as tmp:
+                summary, seconds = project(Path(tmp) / "robustness")
+        else:
+            rows, seconds, phases = peer()
+            print(
+                "  peer jobs' phases (median of 9): " + ", ".join(f"{k} {v:.1f} s" for k, v in phases.median().items())
+            )
+        times[side].append(seconds)
+        print(f"{side}: {seconds:.1f} s (load average after: {load_average()})", flush=True)
     print("\npeer, test split, mean relative deviation [%], mean ± std over seeds:\n" + table(rows).to_markdown())
-    if what == "compare":
+    if args.what == "compare":
         print("\nproject, the same:\n" + table(summary).to_markdown())
         # the same computation: each cell's gap between the two, against the two seed spreads added
         g = ["objective", "windows", "noise_std", "parameter"]
         a, b = (x.groupby(g).mean_rel_dev for x in (rows, summary))
         gap = (a.mean() - b.mean()).abs() / (a.std(ddof=1) + b.std(ddof=1))
-        print(f"\ncells whose gap exceeds the two seed spreads added: {int((gap > 1).sum())} of {len(gap)}")
-        print(f"ratio project / peer: {project_seconds / seconds:.2f}")
+        same = int(((100 * a.mean()).round(2) == (100 * b.mean()).round(2)).sum())
+        print(f"\ncells equal to the digit: {same} of {len(gap)}; gap beyond the two seed spreads added: "
+              f"{int((gap > 1).sum())}")  # fmt: skip
+        pairs = [f"{p / q:.2f}" for p, q in zip(times["project"], times["peer"])]
+        print(f"project {sum(times['project']):.1f} s, peer {sum(times['peer']):.1f} s in all; ratio project / peer "
+              f"{sum(times['project']) / sum(times['peer']):.2f} (per pair: {', '.join(pairs)})")  # fmt: skip
 
 
 if __name__ == "__main__":
