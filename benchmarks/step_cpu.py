@@ -13,7 +13,10 @@ of the machine's speed touches them alike; reported: the median step time of eac
 - fused_bn_relu: BatchNorm and ReLU in one elementwise pass after the convolution (the batch statistics still
   need a pass of their own);
 - compiled: ``torch.compile`` of the network (inductor fuses normalisation, activation and the pointwise head);
-  its first step, which compiles, is reported apart.
+  its first step, which compiles, is reported apart, and again in two fresh processes sharing a new inductor
+  cache directory: the first compiles from nothing (a fresh machine, the main job's first round), the second finds
+  the compiled graphs on disk. With the step times this gives what compiling would save or cost the main job
+  (9 jobs of 1300 steps on 2 cores, 3 worker processes that each compile once).
 
 The FLOP count is torch.utils.flop_counter's (convolutions and matrix products, forward and backward) for one step;
 the matmul rate is the median of timed (512 x 512) @ (512 x 512) float32 products on one thread.
@@ -22,6 +25,10 @@ the matmul rate is the median of timed (512 x 512) @ (512 x 512) float32 product
 from __future__ import annotations
 
 import argparse
+import os
+import subprocess
+import sys
+import tempfile
 import time
 
 import numpy as np
@@ -135,14 +142,40 @@ def matmul_rate(n: int = 512, repeats: int = 50) -> float:
     return 2 * n**3 / float(np.median(times))
 
 
+def first_compiled_steps(size: int) -> tuple[float, float]:
+    """The compiling first step of a fresh process, with an empty inductor cache and then with the one it left."""
+    times = []
+    with tempfile.TemporaryDirectory() as cache:
+        env = {**os.environ, "TORCHINDUCTOR_CACHE_DIR": cache}
+        for _ in range(2):
+            out = subprocess.run(
+                [sys.executable, __file__, "--first-step", "--batch", str(size)],
+                env=env,
+                check=True,
+                capture_output=True,
+                text=True,
+            ).stdout
+            times.append(float(out.split()[-1]))
+    return times[0], times[1]
+
+
+def settings() -> None:
+    torch.set_num_threads(1)
+    torch.use_deterministic_algorithms(True)
+    torch.utils.deterministic.fill_uninitialized_memory = False  # as the runs (training/build.py)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--rounds", type=int, default=60)
     parser.add_argument("--batch", type=int, default=64)
     parser.add_argument("--no-compile", action="store_true", help="leave out torch.compile")
+    parser.add_argument("--first-step", action="store_true", help=argparse.SUPPRESS)  # first_compiled_steps
     args = parser.parse_args()
-    torch.set_num_threads(1)
-    torch.use_deterministic_algorithms(True)
+    settings()
+    if args.first_step:
+        print(Stepper("compiled", args.batch)())
+        return
     names = ["plain", "channels_last_2d", "fused_bn_relu"] + ([] if args.no_compile else ["compiled"])
     steppers = {}
     for name in names:
@@ -167,6 +200,17 @@ def main() -> None:
     for name in names:
         t = float(np.median(times[name]))
         print(f"| {name} | {1000 * t:.2f} | {t / plain:.3f} | {flops / t / 1e9:.1f} GFLOP/s | {flops / t / rate:.0%} |")
+    if "compiled" in names:
+        cold, warm = first_compiled_steps(args.batch)
+        saved = (plain - float(np.median(times["compiled"]))) * 1300 * 9 / 2  # steps of the main job, 2 cores
+        print(
+            f"compiling in a fresh process: {cold:.1f} s with an empty cache, "
+            f"{warm:.1f} s with the compiled graphs on disk"
+        )
+        print(
+            f"the main job: steps {saved:.0f} s shorter on two cores; compiling in its 3 workers costs "
+            f"{3 * cold / 2:.0f} s on a fresh machine, {3 * warm / 2:.0f} s once cached"
+        )
 
 
 if __name__ == "__main__":
