@@ -19,8 +19,11 @@ The warm runs repeat until the last --repeats of them spread by at most --spread
 runs), and the load average before and after is printed: on shared virtual machines the figure depends on the
 load and on the OS's page faults more than on the code. Whether the kernel is held up by memory is answered by
 its write rate (the bytes of the four float32 arrays per second of simulation) against the rate at which the
-same arrays are filled with constants in parallel (the OS floor's warm rounds): a kernel near that rate is
-memory bound, one far below it is bound by its own arithmetic.
+same arrays are filled with constants in parallel (the OS floor's warm rounds; also printed: the rate into
+arrays already mapped, without the OS's first touch): a kernel near that rate is memory bound, one far below it is
+bound by its own arithmetic. The arithmetic alone is timed apart: the kernel on a dataset small enough to stay in
+the caches (two blocks of recordings per thread, --steps steps, the same output arrays every time), per
+recording-step, scaled to the dataset's size.
 """
 
 import argparse
@@ -34,7 +37,7 @@ from machine import load_average
 
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.physics import QuarterCar, relative_states, road_profiles, simulate, wave_amplitudes, wave_numbers
-from hybrid_sysid.physics.compiled import simulate_recordings
+from hybrid_sysid.physics.compiled import LANES, simulate_recordings
 
 
 def reference_roads(classes, n_steps, dt, speed, phases):
@@ -79,7 +82,8 @@ def fast(spec, classes, masses, rng_seed, dtype=np.float32):
 
 def allocation_floor(spec, rounds=3):
     """Seconds to allocate and fill (in parallel, as the kernel writes) four float32 arrays of the dataset's
-    size, `rounds` times in this process: the first time includes the OS finding the memory."""
+    size, `rounds` times in this process: the first time includes the OS finding the memory. Then, last, the
+    best of three fills of the last round's arrays again: memory already mapped, no page faults."""
     import numba
 
     @numba.njit(parallel=True)
@@ -95,8 +99,33 @@ def allocation_floor(spec, rounds=3):
         out = tuple(np.empty((spec.n_roads * spec.n_masses, spec.n_steps), np.float32) for _ in range(4))
         fill(*out)
         times.append(time.perf_counter() - t0)
-        del out
-    return times
+        if len(times) < rounds:
+            del out
+    again = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        fill(*out)
+        again.append(time.perf_counter() - t0)
+    return [*times, min(again)]
+
+
+def in_cache(spec, repeats=30):
+    """Seconds per recording-step per thread of the kernel alone, best of ``repeats``: two blocks of LANES
+    recordings per thread, spec.n_steps steps, written into the same arrays every time (a few MiB, which L2 and
+    L3 hold), so the time is the arithmetic and the block's staging, not the memory."""
+    import numba
+
+    threads = numba.get_num_threads()
+    n = 2 * LANES * threads
+    roads = road_profiles(["C"], spec.n_steps, spec.dt, spec.speed, rng=np.random.default_rng(2))
+    road_of, masses = np.zeros(n, dtype=np.int64), np.linspace(50.0, 200.0, n)
+    out = tuple(np.empty((n, spec.n_steps), np.float32) for _ in range(4))
+    best = np.inf
+    for _ in range(repeats + 1):  # the first call compiles nothing new but warms the caches
+        t0 = time.perf_counter()
+        simulate_recordings(roads, road_of, masses, spec.dt, QuarterCar(), spec.measurement, out=out)
+        best = min(best, time.perf_counter() - t0)
+    return best * threads / (n * spec.n_steps), n, 4 * out[0].nbytes, threads
 
 
 def rel_diff(a, b) -> float:
@@ -174,7 +203,7 @@ def main():
         return
 
     if args.alloc_only:  # run in a fresh process: what the OS costs for the output, with no project code
-        print(*(f"{t:.3f}" for t in allocation_floor(spec)))
+        print(*(f"{t:.6f}" for t in allocation_floor(spec)))
         return
 
     if args.peak_only:  # run in a fresh process: the project's generate_dataset alone
@@ -208,6 +237,7 @@ def main():
     fast(DatasetSpec(n_roads=2, n_masses=2, n_steps=10), ["A", "A"], np.full((2, 2), 60.0), 1)  # compile once
     fast(DatasetSpec(n_roads=2, n_masses=2, n_steps=10), ["A", "A"], np.full((2, 2), 60.0), 1, np.float64)
     load_before = load_average()
+    per_step, small_n, small_bytes, threads = in_cache(spec)
     fast_out, cold_roads, cold_total = fast(spec, classes, masses, 1)
     del fast_out
     runs = []
@@ -264,9 +294,20 @@ def main():
     written = 4 * spec.n_roads * spec.n_masses * spec.n_steps * 4  # bytes: four float32 channels
     fill_rate = written / min(float(alloc[1]), float(alloc[2]))
     kernel_rate = written / (fast_total - fast_roads)
+    mapped_rate = written / float(alloc[3])
     print(
         f"memory: the kernel writes {written / 2**30:.2f} GiB at {kernel_rate / 2**30:.1f} GiB/s; the same arrays "
-        f"are filled at {fill_rate / 2**30:.1f} GiB/s (warm): the kernel reaches {kernel_rate / fill_rate:.0%} of it"
+        f"are filled at {fill_rate / 2**30:.1f} GiB/s (warm): the kernel reaches {kernel_rate / fill_rate:.0%} of it "
+        f"(filling them again once mapped, without the OS's first touch: {mapped_rate / 2**30:.1f} GiB/s)"
+    )
+    arithmetic = per_step * spec.n_roads * spec.n_masses * spec.n_steps / threads
+    simulation = fast_total - fast_roads
+    print(
+        f"arithmetic: the kernel in cache ({small_n} recordings x {spec.n_steps} steps, {small_bytes / 2**20:.1f} MiB "
+        f"of output reused, best of 30) takes {per_step * 1e9:.2f} ns per recording-step on each of {threads} "
+        f"threads: {arithmetic:.3f} s at this size, {arithmetic / simulation:.0%} of the simulation's "
+        f"{simulation:.3f} s; the other {simulation - arithmetic:.3f} s is writing the output to memory (fill floor "
+        f"{written / fill_rate:.3f} s) and what does not overlap"
     )
     names = ("seat acc", "body acc", "rel. velocity", "rel. displacement")
     print("float64 max |project - reference| / max |reference|, per channel:")
