@@ -4,7 +4,13 @@ import sys
 import pytest
 from hydra import compose, initialize_config_dir
 
-pytest_plugins = ["estimator_run"]  # the trained run test_estimator.py and test_predict.py share (tiny_run, est)
+pytest.register_assert_rewrite("started_early")  # a plugin below, imported here first
+from started_early import started_early  # noqa: E402
+
+pytest_plugins = [
+    "estimator_run",  # the trained run test_estimator.py and test_predict.py share (tiny_run, est)
+    "started_early",  # the processes the tests start early (started_early)
+]
 
 # the datasets the app's subprocesses read in the shared cache (tiny_cache): data=tiny on each car they use
 TINY_DATA = (["data=tiny"], ["data=tiny", "car=soft_seat"])
@@ -25,6 +31,37 @@ def tiny_cache(tmp_path_factory):
             cfg = compose(config_name="config", overrides=[*overrides, f"data.cache_dir={cache}"])
         build_datamodule(cfg).prepare_data()  # simulates into the cache, then puts torch's thread count back
     return cache
+
+
+TINY_SWEEP = [
+    "-m",
+    "objective=labelled,hybrid",
+    "seed=0,1",
+    "data=tiny",
+    "trainer=debug",
+    "trainer.max_steps=10",
+    "trainer.eval_every_n_steps=5",
+]
+
+
+@started_early
+def tiny_sweep(tmp, env, tiny_cache):
+    """One sweep of four jobs (two objectives, two seeds) as a user launches it, which test_sweep.py and
+    test_console.py read, never write: (its process, its sweep directory). A new process, its output captured (not
+    a terminal), as `cmd > log 2>&1` would: what a sweep prints, Hydra's multirun, its callbacks and its exit
+    status. trainer.progress_bar stays auto, so that no bar in the output shows auto's choice off a terminal."""
+    import subprocess
+
+    env = {**env, "HYBRID_SYSID_CACHE": str(tiny_cache), "HYDRA_FULL_ERROR": "0"}
+    proc = subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid", *TINY_SWEEP, f"hydra.sweep.dir={tmp / 'sw'}"],
+        cwd=tmp,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=600,
+    )
+    return proc, tmp / "sw"
 
 
 @pytest.fixture
@@ -55,13 +92,15 @@ def cli_in_process(monkeypatch, capfd):
 
     import hybrid_sysid.cli.job as job
 
+    fresh = copy.deepcopy(job._state)  # as a new process has it (a test may run several commands)
+
     def run(main, *args, cwd, env=None):
         monkeypatch.chdir(cwd)
         monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)
         for key, value in (env or {}).items():
             monkeypatch.setenv(key, str(value))
         monkeypatch.setattr(sys, "argv", [main.__module__, *map(str, args)])
-        state = copy.deepcopy(job._state)  # as a new process has it
+        state = copy.deepcopy(fresh)
         monkeypatch.setattr(job, "_state", state)
         capfd.readouterr()
         try:

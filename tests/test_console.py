@@ -3,12 +3,12 @@ bar in a log file, Lightning's messages once and in the run's log file, each com
 command of a missing extra for both kinds of install."""
 
 import json
-import os
 import re
 import subprocess
 import sys
 
 import pytest
+from started_early import started_early
 
 from hybrid_sysid.cli.console import ConsoleFilter
 
@@ -16,47 +16,50 @@ TINY = ["data=tiny", "trainer=debug"]
 BAR = re.compile(r"it/s|\r|█")
 
 
-def run_app(tmp_path, cache, *args, command="hybrid_sysid"):
+def run_app(tmp_path, cache, *args, env):
     """The app in a new process, its output captured (not a terminal), as `cmd > log 2>&1` would."""
-    env = {**os.environ, "HYBRID_SYSID_CACHE": str(cache), "HYDRA_FULL_ERROR": "0"}
-    return subprocess.run(
-        [sys.executable, "-m", command, *args], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300
-    )
+    env = {**env, "HYBRID_SYSID_CACHE": str(cache), "HYDRA_FULL_ERROR": "0"}
+    cli = [sys.executable, "-m", "hybrid_sysid", *args]
+    return subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
 
 
-@pytest.fixture(scope="module")
-def sweep(tmp_path_factory, tiny_cache):
-    tmp = tmp_path_factory.mktemp("console_sweep")
-    proc = run_app(tmp, tiny_cache, "-m", *TINY, "seed=0,1", f"hydra.sweep.dir={tmp / 'sw'}")
+def test_a_sweep_prints_a_line_per_job_and_its_table(tiny_sweep):
+    proc, sweep_dir = tiny_sweep  # 2 objectives x 2 seeds, its output captured (conftest.py)
     assert proc.returncode == 0, proc.stderr[-2000:]
-    return tmp / "sw", proc
-
-
-def test_a_sweep_prints_a_line_per_job_and_its_table(sweep):
-    sweep_dir, proc = sweep
     said = proc.stdout + proc.stderr
     lines = said.splitlines()
-    assert lines[0].startswith(f"sweep: 2 jobs, 1 at a time into {sweep_dir}")
-    done = [line for line in lines if re.match(r"\[\d/2\] #\d seed=\d: p1 [\d.]+ %, p2 [\d.]+ % \(test, noise 0", line)]
-    assert [d[:10] for d in done] == ["[1/2] #0 s", "[2/2] #1 s"], said
-    assert "left" in done[0] and "left" not in done[1]  # an estimate of the time left until the last
-    assert "mean relative deviation on the test split" in said and "| all " in said  # the sweep's table
+    assert lines[0].startswith(f"sweep: 4 jobs, 1 at a time into {sweep_dir}")
+    job = r"\[\d/4\] #\d objective=(labelled|hybrid) seed=\d: p1 [\d.]+ %, p2 [\d.]+ % \(test, noise 0"
+    done = [line for line in lines if re.match(job, line)]
+    assert [d[:8] for d in done] == ["[1/4] #0", "[2/4] #1", "[3/4] #2", "[4/4] #3"], said
+    # an estimate of the time left until the last
+    assert all("left" in d for d in done[:-1]) and "left" not in done[-1]
+    assert "mean relative deviation on the test split" in said and "| hybrid " in said  # the sweep's table
     for noise in ("litlogger", "Seed set", "GPU available", "per road class", "LeafSpec", "INFO: "):
         assert noise not in said, noise  # no advert, Lightning's INFO and the runs' own tables in the log files
     assert not BAR.search(said)
-    assert len(lines) < 20, said
+    # under 20 lines for 2 jobs of one table row; each further job adds 2 (Hydra's line and its own), each
+    # further row 1
+    assert len(lines) < 20 + 2 * 2 + 1, said
 
 
-def test_a_sweep_job_logs_everything_once_into_its_own_file(sweep):
-    sweep_dir, _ = sweep
+def test_a_sweep_job_logs_everything_once_into_its_own_file(tiny_sweep):
+    _, sweep_dir = tiny_sweep
     log = (sweep_dir / "0" / "train.log").read_text()
     assert log.count("Seed set to 0") == 1 and log.count("GPU available") == 1  # once: no duplicate handler
     assert "per road class" in log and "litlogger" not in log
-    assert json.loads((sweep_dir / ".progress").read_text().splitlines()[0])["jobs"] == 2
+    assert json.loads((sweep_dir / ".progress").read_text().splitlines()[0])["jobs"] == 4
 
 
-def test_a_single_run_into_a_file_prints_its_table_without_a_progress_bar(tmp_path, tiny_cache):
-    proc = run_app(tmp_path, tiny_cache, *TINY, f"hydra.run.dir={tmp_path / 'run'}")
+@started_early
+def single_run(tmp, env, tiny_cache):
+    """A new process: progress_bar=auto asks the real stdout whether it is a terminal, and everything the process
+    prints (Lightning's messages, an import's warnings) is what is tested."""
+    return run_app(tmp, tiny_cache, *TINY, f"hydra.run.dir={tmp / 'run'}", env=env)
+
+
+def test_a_single_run_into_a_file_prints_its_table_without_a_progress_bar(single_run):
+    proc = single_run
     assert proc.returncode == 0, proc.stderr[-2000:]
     said = proc.stdout + proc.stderr
     assert "p1 mean rel. dev. [%]" in said and "per road class" in said  # a single run prints its result
@@ -117,11 +120,16 @@ def test_a_job_line_estimates_the_time_left():
 
 
 @pytest.mark.parametrize("command", ["hybrid_sysid", "hybrid_sysid.cli.evaluate"])
-def test_help_of_the_hydra_commands_says_what_they_do(tmp_path, tiny_cache, command):
-    proc = run_app(tmp_path, tiny_cache, "--help", command=command)
+def test_help_of_the_hydra_commands_says_what_they_do(tmp_path, command, cli_in_process):
+    # the command's main(), which `python -m` runs, in this process: the help ends before any work, and stdout
+    # holds only what Hydra's help prints (an import's warnings would go to stderr)
+    from hybrid_sysid.cli import evaluate, train
+
+    main = train.main if command == "hybrid_sysid" else evaluate.main
+    code, out, _ = cli_in_process(main, "--help", cwd=tmp_path)
     name = "hybrid-sysid" if command == "hybrid_sysid" else "hybrid-sysid-eval"
-    assert proc.returncode == 0 and proc.stdout.startswith(f"{name}: ")
-    assert "powered by Hydra" not in proc.stdout and "Examples:" in proc.stdout and "usage: " in proc.stdout
+    assert code == 0 and out.startswith(f"{name}: ")
+    assert "powered by Hydra" not in out and "Examples:" in out and "usage: " in out
 
 
 def test_help_of_predict_and_report_and_their_key_value_errors(capsys):

@@ -2,7 +2,6 @@
 the run is evaluated and recorded once."""
 
 import json
-import os
 import subprocess
 import sys
 import textwrap
@@ -10,6 +9,7 @@ from itertools import islice
 
 import numpy as np
 import pytest
+from started_early import started_early
 
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, RandomWindows
@@ -55,12 +55,11 @@ RECORDING = textwrap.dedent("""
 """)
 
 
-@pytest.mark.integration
-def test_two_processes_draw_different_windows_and_write_one_record(tmp_path, tiny_cache):
-    # real processes: Lightning starts the second rank as a process of its own, with the same command
-    script = tmp_path / "app.py"
+@started_early
+def ddp_run(tmp, env, tiny_cache):
+    """Real processes: Lightning starts the second rank as a process of its own, with the same command."""
+    script = tmp / "app.py"
     script.write_text(RECORDING)
-    env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
     proc = subprocess.run(
         [
             sys.executable,
@@ -69,15 +68,21 @@ def test_two_processes_draw_different_windows_and_write_one_record(tmp_path, tin
             "trainer=ddp",
             "trainer.max_steps=12",
             "trainer.eval_every_n_steps=6",
-            f"hydra.run.dir={tmp_path / 'run'}",
+            f"hydra.run.dir={tmp / 'run'}",
             f"data.cache_dir={tiny_cache}",  # data=tiny, simulated once for the test run: both ranks read it
         ],
-        cwd=tmp_path,
-        env=env,
+        cwd=tmp,
+        env={**env, "HYDRA_FULL_ERROR": "0"},
         capture_output=True,
         text=True,
         timeout=600,
     )
+    return proc, tmp
+
+
+@pytest.mark.integration
+def test_two_processes_draw_different_windows_and_write_one_record(ddp_run):
+    proc, tmp_path = ddp_run
     assert proc.returncode == 0, proc.stderr[-3000:]
     batches = {r: [json.loads(x) for x in (tmp_path / f"rank{r}.jsonl").read_text().splitlines()] for r in (0, 1)}
     assert len(batches[0]) == len(batches[1]) == 3

@@ -10,6 +10,7 @@ import pandas as pd
 import pytest
 from omegaconf import OmegaConf
 from scipy.optimize import curve_fit
+from started_early import started_early
 
 from hybrid_sysid.inference.estimator import InputError, resample_to
 from hybrid_sysid.model.metrics import relative_deviation
@@ -166,17 +167,22 @@ def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
         assert (a == b).all()
 
 
-@pytest.mark.integration
-@pytest.mark.integration
-def test_importing_physics_or_the_app_does_not_load_torch():
-    # the app's process composes and checks the config (and a sweep's parent launches jobs) without torch, so a
-    # refused value comes back in a second
+@started_early
+def fresh_imports(tmp, env):
+    """A new process: what an import loads, in an interpreter that has loaded nothing yet."""
     code = (
         "import sys, hybrid_sysid.physics, hybrid_sysid.cli.train; assert 'torch' not in sys.modules, 'torch loaded'; "
         "from hybrid_sysid import load_estimator; assert 'torch' in sys.modules; "
         "import hybrid_sysid; getattr(hybrid_sysid, 'nothing')"
     )
-    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    return subprocess.run([sys.executable, "-c", code], cwd=tmp, env=env, capture_output=True, text=True, timeout=300)
+
+
+@pytest.mark.integration
+def test_importing_physics_or_the_app_does_not_load_torch(fresh_imports):
+    # the app's process composes and checks the config (and a sweep's parent launches jobs) without torch, so a
+    # refused value comes back in a second
+    done = fresh_imports
     assert "AttributeError: module 'hybrid_sysid' has no attribute 'nothing'" in done.stderr
     assert "torch loaded" not in done.stderr
 

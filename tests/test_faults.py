@@ -1,7 +1,9 @@
 """Fault injection on the app as a cluster or a user would meet it: termination signals to a run and to a
 sweep, a full disk, and refusals that must leave nothing behind. A real process where the process is what is tested
-(signals, another process's lock, a full disk); a refusal, which ends before any work, runs the command's main() in
-this process (cli_in_process in conftest.py). Damaged files: tests/test_reliability.py."""
+(signals, another process's lock, a full disk), those of the signals and the full disk started early, beside other
+tests (started_early.py); a refusal, which ends before any work, and a resume or re-run, which only reads what an
+ended process left, run the command's main() in this process (cli_in_process in conftest.py). Damaged files:
+tests/test_reliability.py."""
 
 import json
 import os
@@ -10,11 +12,13 @@ import signal
 import subprocess
 import sys
 import time
+from types import SimpleNamespace
 
 import pandas as pd
 import pytest
 import torch
 from omegaconf import OmegaConf
+from started_early import started_early
 
 pytestmark = [pytest.mark.integration, pytest.mark.faults]
 
@@ -35,29 +39,30 @@ TINY = [
 ]
 
 
-def env_for(tmp_path, cache=None):
-    """The user's environment (no HYDRA_FULL_ERROR); the dataset cache ``cache`` (the shared tiny_cache, whose
-    data=tiny a run then reads instead of simulating), else an empty one of the test's own."""
-    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
+def env_for(tmp_path, cache=None, env=None):
+    """The user's environment (``env``, else this process's, without HYDRA_FULL_ERROR); the dataset cache
+    ``cache`` (the shared tiny_cache, whose data=tiny a run then reads instead of simulating), else an empty one of
+    the test's own."""
+    env = {k: v for k, v in (env or os.environ).items() if k != "HYDRA_FULL_ERROR"}
     return {**env, "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache")}
 
 
-def launch(tmp_path, *args, cache=None):
+def launch(tmp_path, *args, cache=None, env=None):
     return subprocess.Popen(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,
-        env=env_for(tmp_path, cache),
+        env=env_for(tmp_path, cache, env),
         stdout=subprocess.PIPE,
         stderr=subprocess.STDOUT,
         text=True,
     )
 
 
-def run_app(tmp_path, *args, timeout=600, cache=None):
+def run_app(tmp_path, *args, timeout=600, cache=None, env=None):
     return subprocess.run(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,
-        env=env_for(tmp_path, cache),
+        env=env_for(tmp_path, cache, env),
         capture_output=True,
         text=True,
         timeout=timeout,
@@ -110,9 +115,9 @@ def uninterrupted(reference_run):
     return record(reference_run)
 
 
-def interrupt(tmp_path, run, how, cache):
+def interrupt(tmp_path, run, how, cache, env=None):
     """Start a run, wait for its first checkpoint (step 200 of 400), then end it with ``how``."""
-    proc = launch(tmp_path, *ARGS, f"hydra.run.dir={run}", cache=cache)
+    proc = launch(tmp_path, *ARGS, f"hydra.run.dir={run}", cache=cache, env=env)
     wait_for(run / "checkpoints" / "last.ckpt", proc)
     time.sleep(0.3)  # a few steps past the checkpoint, well before the next one
     proc.send_signal(how)
@@ -137,19 +142,41 @@ def test_killed_run_resumes_to_the_same_metrics(tmp_path, uninterrupted, tiny_ca
     assert sorted(p.name for p in (run / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]
 
 
+@started_early
+def terminated_run(tmp, env, tiny_cache):
+    """A real process: a SIGTERM to the app's process and its exit status (what interrupt() returns, and the run's
+    directory)."""
+    return *interrupt(tmp, tmp / "run", signal.SIGTERM, tiny_cache, env), tmp / "run"
+
+
+@started_early
+def interrupted_run(tmp, env, tiny_cache):
+    """As terminated_run, with SIGINT."""
+    return *interrupt(tmp, tmp / "run", signal.SIGINT, tiny_cache, env), tmp / "run"
+
+
 @pytest.mark.parametrize(
-    "how", [signal.SIGTERM, pytest.param(signal.SIGINT, marks=pytest.mark.slow)], ids=["SIGTERM", "SIGINT"]
+    "how",
+    [
+        pytest.param(signal.SIGTERM, marks=pytest.mark.started_early("terminated_run")),
+        pytest.param(signal.SIGINT, marks=[pytest.mark.slow, pytest.mark.started_early("interrupted_run")]),
+    ],
+    ids=["SIGTERM", "SIGINT"],
 )
-def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(tmp_path, uninterrupted, how, tiny_cache):
-    # real processes: a signal to the app's process, its exit status, and a resume by a new process
-    run = tmp_path / "run"
-    code, out = interrupt(tmp_path, run, how, tiny_cache)
+def test_a_terminated_run_records_it_and_resumes_moved_to_the_same_numbers(
+    request, tmp_path, uninterrupted, how, tiny_cache, cli_in_process
+):
+    # the resume, which only reads the files the first process left, through the command's main() in this process
+    from hybrid_sysid.cli.train import main
+
+    code, out, run = request.getfixturevalue("terminated_run" if how == signal.SIGTERM else "interrupted_run")
     assert code == 128 + how, out[-2000:]
     rec = record(run)
     assert rec["status"] == "interrupted" and signal.Signals(how).name in rec["error"]
     moved = tmp_path / "moved"  # a copied or moved run directory resumes from its own files
     run.rename(moved)
-    resumed = run_app(tmp_path, *ARGS, f"resume={moved}", cache=tiny_cache)
+    code, _, err = cli_in_process(main, *ARGS, f"resume={moved}", cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache})
+    resumed = subprocess.CompletedProcess(main, code, "", err)
     assert resumed.returncode == 0, resumed.stderr[-2000:]
     same_numbers(uninterrupted, record(moved))
     assert sorted(p.name for p in (moved / "checkpoints").iterdir()) == ["best.ckpt", "last.ckpt"]  # no -v1
@@ -257,32 +284,40 @@ def test_an_evaluation_never_writes_into_a_completed_run(tmp_path, reference_run
     assert (reference_run / "metrics.json").read_bytes() == rec
 
 
-def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(tmp_path, reference_run):
-    # a real process: a signal to it and its exit status; its cache stays its own and empty (see below)
-    out = tmp_path / "eval"
+@started_early
+def terminated_evaluation(tmp, env, tiny_run):
+    """A real process: a SIGTERM to it and its exit status; its cache stays its own and empty (see below). What the
+    test asserts on: whether the evaluation still ran when the signal was sent, its exit status and output, its
+    command and its directory."""
+    out = tmp / "eval"
     # the default data: simulating it (an empty cache) outlasts the signal's way there
-    cli = [
-        sys.executable,
-        "-m",
-        "hybrid_sysid.cli.evaluate",
-        f"run={reference_run}",
-        "data=default",
-        f"hydra.run.dir={out}",
-    ]
+    cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"run={tiny_run}", "data=default", f"hydra.run.dir={out}"]
     proc = subprocess.Popen(
-        cli, cwd=tmp_path, env=env_for(tmp_path), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        cli, cwd=tmp, env=env_for(tmp, env=env), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
     )
     deadline = time.time() + 600  # until the evaluation locks the dataset cache to simulate the data
-    while not any((tmp_path / "cache").glob("*.lock")) and proc.poll() is None and time.time() < deadline:
+    while not any((tmp / "cache").glob("*.lock")) and proc.poll() is None and time.time() < deadline:
         time.sleep(0.05)
-    assert proc.poll() is None, "the evaluation ended before the signal could be sent"
-    proc.send_signal(signal.SIGTERM)
+    running = proc.poll() is None
+    if running:
+        proc.send_signal(signal.SIGTERM)
     text, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + signal.SIGTERM, text[-3000:]
+    return running, proc.returncode, text, cli, out
+
+
+def test_a_terminated_evaluation_records_it_and_a_rerun_completes_it(terminated_evaluation, tiny_run, cli_in_process):
+    # the re-run, which only reads what the first process left, through the command's main() in this process
+    from hybrid_sysid.cli.evaluate import main as evaluate
+
+    running, code, text, cli, out = terminated_evaluation
+    assert running, "the evaluation ended before the signal could be sent"
+    assert code == 128 + signal.SIGTERM, text[-3000:]
     assert record(out)["status"] == "interrupted" and "SIGTERM" in record(out)["error"]
-    again = subprocess.run(cli, cwd=tmp_path, env=env_for(tmp_path), capture_output=True, text=True, timeout=600)
+    cwd = out.parent
+    code, _, err = cli_in_process(evaluate, *cli[3:], cwd=cwd, env={"HYBRID_SYSID_CACHE": cwd / "cache"})
+    again = subprocess.CompletedProcess(cli, code, "", err)
     assert again.returncode == 0, again.stderr[-3000:]
-    assert record(out)["status"] == "completed" and record(out)["source_run"] == str(reference_run)
+    assert record(out)["status"] == "completed" and record(out)["source_run"] == str(tiny_run)
 
 
 def sweep_statuses(sw):
@@ -290,53 +325,94 @@ def sweep_statuses(sw):
     return summary.drop_duplicates("run").set_index("run").status.to_dict()
 
 
-@pytest.mark.parametrize(
-    "launcher, how", [pytest.param("basic", signal.SIGTERM, marks=pytest.mark.slow), ("joblib", signal.SIGINT)]
-)
-def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(tmp_path, launcher, how, tiny_cache):
-    # real processes: a signal to the sweep's parent, which passes it on to its workers, and its exit status
-    sw = tmp_path / "sw"
+def terminated_sweep(tmp, env, cache, launcher, how):
+    """A sweep signalled once its first job has recorded, then the same command again. Real processes: a signal to
+    the sweep's parent, which passes it on to its workers, and its exit status. What the test asserts on: whether
+    the sweep still ran when the signal was sent, its exit status and output, the statuses, summary.md and the
+    completed records it left, the second command's process and the sweep's directory."""
+    sw = tmp / "sw"
     args = ["-m", f"launcher={launcher}", "seed=0,1,2", *TINY, f"hydra.sweep.dir={sw}"]
-    proc = launch(tmp_path, *args, cache=tiny_cache)
+    proc = launch(tmp, *args, cache=cache, env=env)
     deadline = time.time() + 600
     while not any(sw.glob("*/metrics.json")) and proc.poll() is None and time.time() < deadline:
         time.sleep(0.05)
-    assert proc.poll() is None, "the sweep ended before the signal could be sent"
-    proc.send_signal(how)  # the parent only, as `timeout` or `kill` would
+    running = proc.poll() is None
+    if running:
+        proc.send_signal(how)  # the parent only, as `timeout` or `kill` would
     out, _ = proc.communicate(timeout=600)
-    assert proc.returncode == 128 + how, out[-3000:]
-    statuses = sweep_statuses(sw)
+    first = SimpleNamespace(running=running, returncode=proc.returncode, out=out, sw=sw)
+    first.statuses = sweep_statuses(sw)
+    first.summary = (sw / "summary.md").read_text()
+    first.done = {
+        run: (sw / run / "metrics.json").read_bytes() for run, s in first.statuses.items() if s == "completed"
+    }
+    first.again = run_app(tmp, *args, cache=cache, env=env)
+    return first
+
+
+@started_early
+def interrupted_sweep(tmp, env, tiny_cache):
+    """terminated_sweep() through joblib's parallel workers, ended with SIGINT."""
+    return terminated_sweep(tmp, env, tiny_cache, "joblib", signal.SIGINT)
+
+
+@started_early
+def terminated_basic_sweep(tmp, env, tiny_cache):
+    """terminated_sweep() through the basic launcher, ended with SIGTERM."""
+    return terminated_sweep(tmp, env, tiny_cache, "basic", signal.SIGTERM)
+
+
+@pytest.mark.parametrize(
+    "launcher, how",
+    [
+        pytest.param(
+            "basic", signal.SIGTERM, marks=[pytest.mark.slow, pytest.mark.started_early("terminated_basic_sweep")]
+        ),
+        pytest.param("joblib", signal.SIGINT, marks=pytest.mark.started_early("interrupted_sweep")),
+    ],
+)
+def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(request, launcher, how):
+    first = request.getfixturevalue("interrupted_sweep" if launcher == "joblib" else "terminated_basic_sweep")
+    sw = first.sw
+    assert first.running, "the sweep ended before the signal could be sent"
+    assert first.returncode == 128 + how, first.out[-3000:]
+    statuses = first.statuses
     assert set(statuses.values()) <= {"completed", "interrupted"} and "interrupted" in statuses.values()
     assert "completed" in statuses.values()
-    assert "interrupted" in (sw / "summary.md").read_text()
-    done = {run: (sw / run / "metrics.json").read_bytes() for run, s in statuses.items() if s == "completed"}
+    assert "interrupted" in first.summary
 
-    again = run_app(tmp_path, *args, cache=tiny_cache)
+    again = first.again
     assert again.returncode == 0, again.stderr[-3000:]
     assert set(sweep_statuses(sw).values()) == {"completed"} and len(sweep_statuses(sw)) == 3
-    assert all((sw / run / "metrics.json").read_bytes() == b for run, b in done.items())  # not trained again
+    assert all((sw / run / "metrics.json").read_bytes() == b for run, b in first.done.items())  # not trained again
 
 
-def test_a_full_disk_ends_with_a_record_or_one_line(tmp_path, tiny_cache):
-    # a real process: what it prints and its exit status when its own files cannot be written
+@started_early
+def full_disk(tmp, env, tiny_cache):
+    """A real process: what it prints and its exit status when its own files cannot be written. What the test
+    asserts on: the process, the record it left (None if none) and the temporary files left behind."""
     if os.geteuid() != 0:
         pytest.skip("mounting a small filesystem needs root; without it the run dir cannot be made to fill up")
-    mnt = tmp_path / "small"
+    mnt = tmp / "small"
     mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=192k", "tmpfs", str(mnt)]).returncode:
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=192k", "tmpfs", str(mnt)], capture_output=True).returncode:
         pytest.skip("this platform does not allow mounting a tmpfs")
     try:
-        proc = run_app(tmp_path, *TINY, f"hydra.run.dir={mnt / 'run'}", cache=tiny_cache)
-        assert proc.returncode != 0
-        stored = (mnt / "run" / "metrics.json").exists()
-        if stored:
-            rec = record(mnt / "run")
-            assert rec["status"] == "failed" and ("No space" in rec["error"] or "write" in rec["error"])
-        else:
-            assert "error: could not record the failed job" in proc.stderr
-        assert not list((mnt / "run").rglob("*.tmp"))
+        proc = run_app(tmp, *TINY, f"hydra.run.dir={mnt / 'run'}", cache=tiny_cache, env=env)
+        stored = record(mnt / "run") if (mnt / "run" / "metrics.json").exists() else None
+        return proc, stored, list((mnt / "run").rglob("*.tmp"))
     finally:
         subprocess.run(["umount", str(mnt)], check=True)
+
+
+def test_a_full_disk_ends_with_a_record_or_one_line(full_disk):
+    proc, rec, left = full_disk
+    assert proc.returncode != 0
+    if rec is not None:
+        assert rec["status"] == "failed" and ("No space" in rec["error"] or "write" in rec["error"])
+    else:
+        assert "error: could not record the failed job" in proc.stderr
+    assert not left
 
 
 def refused(proc, *words):

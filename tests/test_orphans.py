@@ -86,8 +86,10 @@ def test_only_a_started_worker_watches_its_parent_and_only_once():
 
 @pytest.mark.integration
 @pytest.mark.faults
-def test_a_killed_sweeps_workers_record_the_interruption_and_exit(tmp_path, tiny_cache):
-    # real processes: a sweep's parent killed, its workers left orphaned
+def test_a_killed_sweeps_workers_record_the_interruption_and_exit(tmp_path, tiny_cache, no_process_started_early):
+    # real processes: a sweep's parent killed, its workers left orphaned. Alone on the cores: a worker has
+    # GRACE_SECONDS (orphans.py) from its parent's death to record its job, which a worker slowed down by other
+    # processes outlasts (it then exits without a record)
     sw = tmp_path / "sw"
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     env["HYBRID_SYSID_CACHE"] = str(tiny_cache)  # data=tiny, simulated once for the test run

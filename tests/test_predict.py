@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from started_early import started_early
 
 from hybrid_sysid.cli.predict import main
 
@@ -32,25 +33,23 @@ def write_csv(path, seat, body, dt, names=None, time=True):
     return path
 
 
-@pytest.mark.integration
-def test_csv_through_the_command_gives_the_api_numbers(tiny_run, est, tmp_path):
-    # a real process: the command as installed (python -m), its files read back against the API in this one
+def test_csv_through_the_command_gives_the_api_numbers(tiny_run, est, tmp_path, capsys, monkeypatch):
+    # the module as `python -m hybrid_sysid.cli.predict` runs it, in this process: its arguments from the command
+    # line, its files read back against the API (what a real process prints: the test below)
+    import runpy
+
     seat, body, _ = recordings(3, 320, est.dt)
     names = ["front", "rear", "spare"]
     csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt, names)
-    done = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "hybrid_sysid.cli.predict",
-            f"run={tiny_run}",
-            f"input={csv}",
-            f"output={tmp_path / 'out.csv'}",
-            "windows=5",
-        ],
-        capture_output=True,
-        text=True,
-    )
+    argv = [f"run={tiny_run}", f"input={csv}", f"output={tmp_path / 'out.csv'}", "windows=5"]
+    monkeypatch.setattr(sys, "argv", ["hybrid_sysid.cli.predict", *argv])
+    try:
+        runpy.run_module("hybrid_sysid.cli.predict", run_name="__main__", alter_sys=True)
+        code = 0
+    except SystemExit as exc:
+        code = exc.code
+    out = capsys.readouterr()
+    done = subprocess.CompletedProcess(argv, code, out.out, out.err)
     assert done.returncode == 0, done.stderr
     got = pd.read_csv(tmp_path / "out.csv")
     want = est.predict(seat, body, est.dt, windows=5)
@@ -59,16 +58,20 @@ def test_csv_through_the_command_gives_the_api_numbers(tiny_run, est, tmp_path):
     assert done.stdout.splitlines()[0].split() == list(got.columns)
 
 
-@pytest.mark.integration
-def test_bad_input_exits_2_with_one_line_in_a_real_process(tiny_run, est, tmp_path):
-    """After the run is loaded, so nothing that loading prints can slip in (warnings, tracebacks)."""
+@started_early
+def short_input(tmp, env, tiny_run, est):
+    """A real process: all it prints, which in this process pytest would take (warnings) or earlier tests would
+    have printed already (a warning shows once a process)."""
     seat, body, _ = recordings(1, 150, est.dt)
-    csv = write_csv(tmp_path / "short.csv", seat, body, est.dt)
-    done = subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", f"input={csv}"],
-        capture_output=True,
-        text=True,
-    )
+    csv = write_csv(tmp / "short.csv", seat, body, est.dt)
+    cli = [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", f"input={csv}"]
+    return subprocess.run(cli, cwd=tmp, env=env, capture_output=True, text=True, timeout=300), csv
+
+
+@pytest.mark.integration
+def test_bad_input_exits_2_with_one_line_in_a_real_process(short_input):
+    """After the run is loaded, so nothing that loading prints can slip in (warnings, tracebacks)."""
+    done, csv = short_input
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.splitlines() == [
         f"hybrid-sysid-predict: error: input = {csv}: recording 0 has 150 steps; "

@@ -1,8 +1,9 @@
-"""Hyperparameter search (conf/hparams_search, the study sweeper of hybrid_sysid.cli.search) in a subprocess, as a
-user runs it: a seeded 3-trial study completes with finite values, each trial's value is its job's
-model-selection figure, a failed trial is recorded and the study goes on, the best parameters are written beside
-the sweep, a search terminated during a trial and run again ends with the trials and values of an uninterrupted
-one, and a search over the hybrid objective never reads labels."""
+"""Hyperparameter search (conf/hparams_search, the study sweeper of hybrid_sysid.cli.search) as a user runs it (a
+subprocess where a signal ends it, else the command's main() in this process): a seeded 3-trial study completes
+with finite values, each trial's value is its job's model-selection figure, a failed trial is recorded and the
+study goes on, the best parameters are written beside the sweep, a search terminated during a trial and run again
+ends with the trials and values of an uninterrupted one, and a search over the hybrid objective never reads
+labels."""
 
 import json
 import math
@@ -14,6 +15,7 @@ import textwrap
 
 import pytest
 import yaml
+from started_early import started_early
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 
@@ -132,24 +134,45 @@ def test_a_labelled_search_scores_trials_by_val_rel_dev_and_goes_on_past_a_faile
     assert "a failing trial" in summary
 
 
-def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(tmp_path, tiny_cache):
-    # a fresh process: the signal, its exit status and the stored study are what is tested
-    longer = ["trainer.max_steps=40", "trainer.eval_every_n_steps=10", "hydra.sweeper.sampler.n_startup_trials=1"]
-    whole, study, records = search(tmp_path, "whole", *longer, cache=tiny_cache)
+def in_process(cli_in_process, tmp_path, name, *args, cache):
+    """The search as search() runs it, through the command's main() in this process: (sweep, study, records)."""
+    from hybrid_sysid.cli.train import main
+
+    code, _, err = cli_in_process(main, *command(tmp_path, name, *args, cache=cache)[3:], cwd=tmp_path)
+    assert code == 0, err[-3000:]
+    return tmp_path / name, *results(tmp_path / name)
+
+
+LONGER = ["trainer.max_steps=40", "trainer.eval_every_n_steps=10", "hydra.sweeper.sampler.n_startup_trials=1"]
+
+
+@started_early
+def cut_search(tmp, env, tiny_cache):
+    """A fresh process, sending itself a SIGTERM at trial 1's 5th step (trial 0 random, 1 and 2 from TPE): the
+    signal, its exit status and the study it leaves are what is tested."""
+    script = tmp / "terminated.py"
+    script.write_text(TERMINATED)
+    cut_cli = command(tmp, "cut", *LONGER, script=script, cache=tiny_cache)
+    return subprocess.run(cut_cli, cwd=tmp, env=env, capture_output=True, text=True, timeout=900), tmp
+
+
+def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(
+    tmp_path, tiny_cache, cli_in_process, cut_search
+):
+    # the uninterrupted search and the re-run in this process (nothing of theirs is about a process); the
+    # terminated one in a fresh process (cut_search)
+    whole, study, records = in_process(cli_in_process, tmp_path, "whole", *LONGER, cache=tiny_cache)
     assert [t.state.name for t in study.trials] == ["COMPLETE"] * 3
 
-    # the same search, with a SIGTERM to its process at trial 1's 5th step (trial 0 random, 1 and 2 from TPE)
-    script = tmp_path / "terminated.py"
-    script.write_text(TERMINATED)
-    cut_cli = command(tmp_path, "cut", *longer, script=script, cache=tiny_cache)
-    search_proc = subprocess.run(cut_cli, cwd=tmp_path, capture_output=True, text=True, timeout=900)
+    # the same search, terminated during trial 1
+    search_proc, where = cut_search
     assert search_proc.returncode == 128 + signal.SIGTERM, search_proc.stderr[-3000:]
-    cut = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{tmp_path / 'cut' / 'study.db'}")
+    cut = optuna.load_study(study_name="fast_cnn", storage=f"sqlite:///{where / 'cut' / 'study.db'}")
     assert [t.state.name for t in cut.trials] == ["COMPLETE", "RUNNING"]  # trial 1 left for the re-run
-    assert json.loads((tmp_path / "cut" / "1" / "metrics.json").read_text())["status"] == "interrupted"
+    assert json.loads((where / "cut" / "1" / "metrics.json").read_text())["status"] == "interrupted"
 
     # the same command again: exit 0
-    again, resumed, resumed_records = search(tmp_path, "cut", *longer, cache=tiny_cache)
+    again, resumed, resumed_records = in_process(cli_in_process, where, "cut", *LONGER, cache=tiny_cache)
     assert [t.number for t in resumed.trials] == [0, 1, 2]
     assert [t.params for t in resumed.trials] == [t.params for t in study.trials]
     assert [t.value for t in resumed.trials] == [t.value for t in study.trials]  # identical, not close

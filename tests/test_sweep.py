@@ -8,6 +8,7 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+from started_early import started_early
 
 pytestmark = pytest.mark.integration  # subprocess runs of the app: minutes, still in the default suite
 
@@ -20,10 +21,10 @@ TINY = [
 ]
 
 
-def run_app(tmp_path, *args, cache=None):
+def run_app(tmp_path, *args, cache=None, env=None):
     """The app in a new process, as a user starts a sweep; ``cache``: the shared tiny_cache (the jobs then read
-    data=tiny instead of simulating it), else an empty one of the test's own."""
-    env = {**os.environ, "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
+    data=tiny instead of simulating it), else an empty one of the test's own; ``env``: else this process's."""
+    env = {**(env or os.environ), "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
     return subprocess.run(
         [sys.executable, "-m", "hybrid_sysid", *args],
         cwd=tmp_path,
@@ -34,18 +35,8 @@ def run_app(tmp_path, *args, cache=None):
     )
 
 
-@pytest.fixture(scope="module")
-def sweep(tmp_path_factory, tiny_cache):
-    """One sweep, as a user launches it (a new process: Hydra's multirun, its callbacks and exit status), which
-    the three tests below read."""
-    tmp = tmp_path_factory.mktemp("sweep")
-    args = ["-m", "objective=labelled,hybrid", "seed=0,1", *TINY, f"hydra.sweep.dir={tmp / 'sw'}"]
-    proc = run_app(tmp, *args, cache=tiny_cache)
-    return proc, tmp / "sw"
-
-
-def test_summary_csv_equals_the_jobs_records(sweep):
-    proc, sw = sweep
+def test_summary_csv_equals_the_jobs_records(tiny_sweep):
+    proc, sw = tiny_sweep  # objective=labelled,hybrid seed=0,1 (conftest.py)
     assert proc.returncode == 0, proc.stderr[-2000:]
     summary = pd.read_csv(sw / "summary.csv", dtype={"run": str})
     jobs = sorted(p for p in sw.iterdir() if (p / "metrics.json").exists())
@@ -63,10 +54,12 @@ def test_summary_csv_equals_the_jobs_records(sweep):
             assert len(row) == 1
             assert row.mean_rel_dev.item() == r["mean_rel_dev"] and row.std_rel_dev.item() == r["std_rel_dev"]
             assert str(row.objective.item()) in record["overrides"][0]
+        # run_figures=auto: a sweep's job draws none (hybrid-sysid-report run_figures=true draws them later)
+        assert not (job / "figures").exists()
 
 
-def test_markdown_table_is_mean_and_spread_over_seeds(sweep):
-    proc, sw = sweep
+def test_markdown_table_is_mean_and_spread_over_seeds(tiny_sweep):
+    proc, sw = tiny_sweep
     md = (sw / "summary.md").read_text()
     table = next(block for block in md.split("\n\n") if block.startswith("| objective "))
     assert table in proc.stdout  # the table is printed too
@@ -88,10 +81,10 @@ def test_markdown_table_is_mean_and_spread_over_seeds(sweep):
     assert (sw / "figures" / "robustness.png").stat().st_size > 10_000
 
 
-def test_report_rebuilds_the_same_table(sweep, tmp_path, monkeypatch):
+def test_report_rebuilds_the_same_table(tiny_sweep, tmp_path, monkeypatch):
     import runpy
 
-    _, sw = sweep
+    _, sw = tiny_sweep
     out = tmp_path / "report"
     # `python -m hybrid_sysid.report`, run in this process: its module, arguments and exit status, not a new process
     monkeypatch.setattr(sys, "argv", ["python -m hybrid_sysid.report", str(sw), f"out={out}"])
@@ -102,12 +95,18 @@ def test_report_rebuilds_the_same_table(sweep, tmp_path, monkeypatch):
     pd.testing.assert_frame_equal(pd.read_csv(out / "summary.csv"), pd.read_csv(sw / "summary.csv"))
 
 
-def test_a_failing_job_is_a_row_and_the_sweep_exits_nonzero(tmp_path, tiny_cache):
-    # a new process: the sweep's exit status and what it prints
-    args = ["-m", "model.optim.lr=0.003,-1", *TINY, f"hydra.sweep.dir={tmp_path / 'sw'}"]
-    proc = run_app(tmp_path, *args, cache=tiny_cache)
+@started_early
+def failing_sweep(tmp, env, tiny_cache):
+    """A new process: the sweep ends in SystemExit with a message, which the interpreter prints and turns into exit
+    status 1."""
+    args = ["-m", "model.optim.lr=0.003,-1", *TINY, f"hydra.sweep.dir={tmp / 'sw'}"]
+    return run_app(tmp, *args, cache=tiny_cache, env=env), tmp / "sw"
+
+
+def test_a_failing_job_is_a_row_and_the_sweep_exits_nonzero(failing_sweep):
+    proc, sw = failing_sweep
     assert proc.returncode != 0
-    summary = pd.read_csv(tmp_path / "sw" / "summary.csv")
+    summary = pd.read_csv(sw / "summary.csv")
     failed = summary[summary.status == "failed"]
     assert len(failed) == 1 and "model.optim.lr = -1" in failed.error.item()
     assert (summary[summary.status == "completed"].run.nunique()) == 1

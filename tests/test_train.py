@@ -84,30 +84,16 @@ def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_p
     assert (tmp_path / "k" / "figures" / "test_predictions.png").stat().st_size > 10_000
 
 
-@pytest.mark.integration
-def test_a_nan_loss_stops_the_run_and_records_why(tmp_path, tiny_cache):
-    # a new process: the app records the failure of its job and exits non-zero
-    import os
+def test_a_nan_loss_stops_the_run_and_records_why(tmp_path, tiny_cache, cli_in_process):
+    # the command's main() in this process: the app records the failure of its job and exits non-zero
     import subprocess
-    import sys
 
-    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tiny_cache)}  # data=tiny, simulated once for the test run
-    proc = subprocess.run(
-        [
-            sys.executable,
-            "-m",
-            "hybrid_sysid",
-            *TINY,
-            "model.optim.lr=1e30",
-            "trainer.progress_bar=false",
-            f"hydra.run.dir={tmp_path / 'run'}",
-        ],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=300,
-    )
+    from hybrid_sysid.cli.train import main
+
+    args = [*TINY, "model.optim.lr=1e30", "trainer.progress_bar=false", f"hydra.run.dir={tmp_path / 'run'}"]
+    # data=tiny, simulated once for the test run
+    code, out, err = cli_in_process(main, *args, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache})
+    proc = subprocess.CompletedProcess(args, code, out, err)
     assert proc.returncode != 0
     record = json.loads((tmp_path / "run" / "metrics.json").read_text())
     assert record["status"] == "failed"

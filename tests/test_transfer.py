@@ -399,8 +399,12 @@ def test_the_field_chain_runs_end_to_end_and_a_rerun_skips_it(make_cfg, tmp_path
 
 
 @pytest.mark.integration
-def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path):
-    # new processes: the command's exit statuses, and what a user sees of a refusal (one line, no traceback)
+def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path, cli_in_process):
+    # a new process for the refusal: what a user sees of it (one line, no traceback: an import's warnings
+    # included) and its exit status; the sweep, whose jobs the basic launcher runs in the command's own process,
+    # through the command's main() in this process
+    from hybrid_sysid.cli.evaluate import main
+
     _, _, run_dir = source
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     cli = [sys.executable, "-c", "from hybrid_sysid.cli.evaluate import main; main()"]
@@ -409,14 +413,9 @@ def test_eval_cli_sweeps_cars_and_refuses_another_objective(source, tmp_path):
     )
     assert bad.returncode == 2 and "Traceback" not in bad.stderr
     assert bad.stderr.strip().splitlines()[-1].startswith("error: objective cannot be overridden in an evaluation")
-    sweep = subprocess.run(
-        cli + ["-m", f"run={run_dir}", "car=paper,soft_seat", "hydra.sweep.dir=sweep"],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    sweep_args = ["-m", f"run={run_dir}", "car=paper,soft_seat", "hydra.sweep.dir=sweep"]
+    code, _, err = cli_in_process(main, *sweep_args, cwd=tmp_path)
+    sweep = subprocess.CompletedProcess(main, code, "", err)
     assert sweep.returncode == 0, sweep.stderr[-2000:]
     import pandas as pd
 

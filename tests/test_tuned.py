@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 import yaml
 from omegaconf import OmegaConf
+from started_early import started_early
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 
@@ -118,9 +119,12 @@ def test_a_hybrid_search_never_reads_labels_and_a_rerun_trains_nothing(hybrid_jo
     assert clean["results"] != dirty["results"]  # the poison was there: the scores that use labels differ
 
 
-@pytest.mark.integration
-def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path, tiny_cache):
-    sweep = tmp_path / "sweep"
+@started_early
+def tuned_sweep(tmp, env, tiny_cache):
+    """The sweep as a user runs it, then the same command again: real processes (joblib's workers run the jobs).
+    Between the two, the job's record is replaced by the "interrupted" one an earlier SIGTERM leaves. What the test
+    asserts on: the two processes and the sweep's directory."""
+    sweep = tmp / "sweep"
     cli = [
         sys.executable,
         "-m",
@@ -132,11 +136,18 @@ def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tmp_path, 
         f"hydra.sweep.dir={sweep}",
         f"data.cache_dir={tiny_cache}",  # the test run's shared dataset: no simulation in the subprocess
     ]
-    proc = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
+    proc = subprocess.run(cli, cwd=tmp, env=env, capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0:
+        return proc, None, sweep
+    (sweep / "0" / "metrics.json").write_text('{"status": "interrupted", "error": "interrupted by SIGTERM"}')
+    return proc, subprocess.run(cli, cwd=tmp, env=env, capture_output=True, text=True, timeout=600), sweep
+
+
+@pytest.mark.integration
+def test_the_sweep_tables_the_default_and_tuned_runs_and_the_searches(tuned_sweep, tmp_path):
+    proc, again, sweep = tuned_sweep
     assert proc.returncode == 0, proc.stderr[-3000:]
     # an earlier SIGTERM leaves the job's own "interrupted" record; the same command, every run done, supersedes it
-    (sweep / "0" / "metrics.json").write_text('{"status": "interrupted", "error": "interrupted by SIGTERM"}')
-    again = subprocess.run(cli, cwd=tmp_path, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr[-3000:]
     assert not (sweep / "0" / "metrics.json").exists()
     summary = pd.read_csv(sweep / "summary.csv")

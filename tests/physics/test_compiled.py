@@ -50,6 +50,7 @@ def test_kernel_rejects_unusable_output_arrays_and_measurements():
 
 @pytest.mark.integration
 def test_the_physics_package_does_not_load_the_compiler():
+    # a new process: what an import loads, in an interpreter that has loaded nothing yet
     code = "import sys, hybrid_sysid.physics; print(sorted(m for m in ('numba', 'llvmlite') if m in sys.modules))"
     loaded = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
     assert loaded.strip() == "[]"

@@ -1,0 +1,122 @@
+"""Real processes that tests need, started when the test run starts and run one after another by a thread of their
+own, beside the tests in this process. A process of the app spends seconds importing torch and Lightning, and runs
+a tiny training, while the tests before its own run here: on two cores, it takes what these tests leave of them.
+The thread and so its processes run at the lowest priority (nice 19), so that the tests here are not slowed (a
+tiny torch operation on two threads waits for both), and with OMP_WAIT_POLICY=PASSIVE, so that their torch threads
+sleep at a barrier instead of spinning for a core. Neither changes a number: they change when a process runs and
+how its threads wait, not how many threads it has or what they compute.
+
+A test module decorates a function ``name(tmp, env, **fixtures)`` with ``started_early``: it becomes a fixture of
+that name, one for the whole test run, whose value is the function's result. ``tmp`` is a new directory of its own,
+``env`` the environment to start processes with (tests in this process change ``os.environ`` meanwhile), the other
+arguments fixtures of the whole test run (tiny_cache, tiny_run...). The function runs the process and returns what
+the test asserts on. Only the functions that the selected tests read are started, in the order of their first
+reader; a test that reads one through request.getfixturevalue (for one of its parameters) names it in a mark,
+``pytest.param(..., marks=pytest.mark.started_early("name"))``. A test whose process has not ended yet waits for
+it, and an exception the function raises (a failed wait, a skip) is raised in the test. A test whose own processes
+need the cores alone takes the fixture no_process_started_early."""
+
+import concurrent.futures
+import contextlib
+import inspect
+import os
+import threading
+
+import pytest
+
+_STARTED = {}  # fixture name -> the function that runs the process
+
+
+def started_early(fn):
+    """The fixture named like ``fn`` whose value is what ``fn`` returns (see the module's docstring)."""
+    if fn.__name__ in _STARTED:
+        raise ValueError(f"two processes started early are named {fn.__name__}")
+    _STARTED[fn.__name__] = fn
+
+    @pytest.fixture(scope="session", name=fn.__name__)
+    def result(_started_early):
+        return _started_early.result(fn.__name__)
+
+    result.__doc__ = fn.__doc__
+    return result
+
+
+def _lowest_priority():
+    """Nice 19 for the calling thread, which the processes it starts inherit (on Linux a thread's own; elsewhere,
+    where it is the process's, the tests here would share it)."""
+    os.setpriority(os.PRIO_PROCESS, 0, 19)
+
+
+class _Lane:
+    """One thread that runs the functions, in the order they were started."""
+
+    def __init__(self, request, tmp_path_factory):
+        self.request, self.tmp_path_factory = request, tmp_path_factory
+        self.env = {**os.environ, "OMP_WAIT_POLICY": "PASSIVE"}
+        self.pool = concurrent.futures.ThreadPoolExecutor(1, "started-early", initializer=_lowest_priority)
+        self.futures = {}
+        self.changed = threading.Condition()
+        self.busy = False  # a function runs
+        self.alone = 0  # tests that need the cores alone, waiting or running: no function starts meanwhile
+
+    def start(self, name):
+        if name not in self.futures:
+            fn = _STARTED[name]
+            given = {"tmp": lambda: self.tmp_path_factory.mktemp(name), "env": lambda: dict(self.env)}
+            kwargs = {
+                p: given[p]() if p in given else self.request.getfixturevalue(p)
+                for p in inspect.signature(fn).parameters
+            }
+            self.futures[name] = self.pool.submit(self._run, fn, kwargs)
+        return self.futures[name]
+
+    def _run(self, fn, kwargs):
+        with self.changed:
+            self.changed.wait_for(lambda: not self.alone)
+            self.busy = True
+        try:
+            return fn(**kwargs)
+        finally:
+            with self.changed:
+                self.busy = False
+                self.changed.notify_all()
+
+    @contextlib.contextmanager
+    def cores_alone(self):
+        with self.changed:
+            self.alone += 1
+            self.changed.wait_for(lambda: not self.busy)
+        try:
+            yield
+        finally:
+            with self.changed:
+                self.alone -= 1
+                self.changed.notify_all()
+
+    def result(self, name):
+        return self.start(name).result()
+
+
+@pytest.fixture
+def no_process_started_early(_started_early):
+    """For a test whose processes must have the cores to themselves (it bounds how soon they end): the process
+    started early that runs now ends first, and the next one starts after the test. Such a test reads no process
+    started early: it would wait for a function that waits for the test."""
+    with _started_early.cores_alone():
+        yield
+
+
+def pytest_configure(config):
+    config.addinivalue_line("markers", "started_early(name): the test reads the process started early as name")
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _started_early(request, tmp_path_factory):
+    lane = _Lane(request, tmp_path_factory)
+    for item in request.session.items:
+        marked = [name for mark in item.iter_markers("started_early") for name in mark.args]
+        for name in [*item.fixturenames, *marked]:
+            if name in _STARTED:
+                lane.start(name)
+    yield lane
+    lane.pool.shutdown(wait=True, cancel_futures=True)
