@@ -21,6 +21,7 @@ import contextlib
 import inspect
 import os
 import threading
+import time
 
 import pytest
 
@@ -55,6 +56,7 @@ class _Lane:
         self.env = {**os.environ, "OMP_WAIT_POLICY": "PASSIVE"}
         self.pool = concurrent.futures.ThreadPoolExecutor(1, "started-early", initializer=_lowest_priority)
         self.futures = {}
+        self.seconds = {}  # name -> (seconds its function ran, seconds the tests waited for it)
         self.changed = threading.Condition()
         self.busy = False  # a function runs
         self.alone = 0  # tests that need the cores alone, waiting or running: no function starts meanwhile
@@ -74,9 +76,11 @@ class _Lane:
         with self.changed:
             self.changed.wait_for(lambda: not self.alone)
             self.busy = True
+        start = time.perf_counter()
         try:
             return fn(**kwargs)
         finally:
+            self.seconds[fn.__name__] = (time.perf_counter() - start, 0.0)
             with self.changed:
                 self.busy = False
                 self.changed.notify_all()
@@ -94,7 +98,21 @@ class _Lane:
                 self.changed.notify_all()
 
     def result(self, name):
-        return self.start(name).result()
+        future, start = self.start(name), time.perf_counter()
+        try:
+            return future.result()
+        finally:
+            ran, waited = self.seconds.get(name, (0.0, 0.0))
+            self.seconds[name] = (ran, waited + time.perf_counter() - start)
+
+    def summary(self):
+        """One line a process (slowest first): what --durations cannot show, its time being spent beside tests."""
+        rows = sorted(self.seconds.items(), key=lambda kv: -kv[1][0])
+        ran, waited = sum(r for r, _ in self.seconds.values()), sum(w for _, w in self.seconds.values())
+        return [
+            f"{len(rows)} processes started early: {ran:.1f} s on their thread; tests waited {waited:.1f} s for them",
+            *(f"{r:6.2f}s ran, {w:6.2f}s waited for (queued or running)  {name}" for name, (r, w) in rows),
+        ]
 
 
 @pytest.fixture
@@ -110,9 +128,20 @@ def pytest_configure(config):
     config.addinivalue_line("markers", "started_early(name): the test reads the process started early as name")
 
 
+def pytest_terminal_summary(terminalreporter, config):
+    lane = config.stash.get(_LANE, None)
+    if lane is not None and lane.seconds:
+        terminalreporter.write_sep("=", "processes started early (tests/started_early.py)")
+        for line in lane.summary():
+            terminalreporter.write_line(line)
+
+
+_LANE = pytest.StashKey()
+
+
 @pytest.fixture(scope="session", autouse=True)
 def _started_early(request, tmp_path_factory):
-    lane = _Lane(request, tmp_path_factory)
+    lane = request.config.stash[_LANE] = _Lane(request, tmp_path_factory)
     for item in request.session.items:
         marked = [name for mark in item.iter_markers("started_early") for name in mark.args]
         for name in [*item.fixturenames, *marked]:
