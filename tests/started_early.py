@@ -44,8 +44,9 @@ def started_early(fn):
 
 def _lowest_priority():
     """Nice 19 for the calling thread, which the processes it starts inherit (on Linux a thread's own; elsewhere,
-    where it is the process's, the tests here would share it)."""
-    os.setpriority(os.PRIO_PROCESS, 0, 19)
+    where it is the process's, the tests here would share it; where there is none, as on Windows, the default)."""
+    if hasattr(os, "setpriority"):
+        os.setpriority(os.PRIO_PROCESS, 0, 19)
 
 
 class _Lane:
