@@ -84,12 +84,41 @@ def test_only_a_started_worker_watches_its_parent_and_only_once():
         assert pool.apply(started_twice) == (True, False, 1)
 
 
+WATCHED = """
+import signal, sys, threading, time
+from hybrid_sysid.cli import orphans
+signal.signal(signal.SIGTERM, lambda *_: print("SIGTERM", flush=True))  # as the job's handler: a request
+job, grace = float(sys.argv[1]), float(sys.argv[2])
+with orphans.job_in_progress():
+    # the watcher of a worker whose parent is already gone (no process has pid -1)
+    threading.Thread(target=orphans._watch, args=(-1, 0.01, grace), daemon=True).start()
+    time.sleep(job)  # the job, until its record is written
+    print("recorded", flush=True)
+time.sleep(60)
+print("idle through the grace", flush=True)
+"""
+
+
+@pytest.mark.parametrize(
+    "job, grace, said",
+    [(1.0, 600.0, ["SIGTERM", "recorded"]), (600.0, 1.0, ["SIGTERM"])],
+    ids=["exits-once-the-job-recorded", "the-grace-bounds-a-job-that-never-records"],
+)
+def test_an_orphaned_worker_exits_once_its_job_has_recorded(job, grace, said):
+    # a process of its own: the watcher ends the process it runs in
+    done = subprocess.run(
+        [sys.executable, "-c", WATCHED, str(job), str(grace)], capture_output=True, text=True, timeout=120
+    )
+    assert done.returncode == 128 + signal.SIGTERM, done.stderr[-2000:]
+    assert done.stdout.split() == said  # waited for the record, not for the grace; or not past the grace
+
+
 @pytest.mark.integration
 @pytest.mark.faults
 def test_a_killed_sweeps_workers_record_the_interruption_and_exit(tmp_path, tiny_cache, no_process_started_early):
-    # real processes: a sweep's parent killed, its workers left orphaned. Alone on the cores: a worker has
-    # GRACE_SECONDS (orphans.py) from its parent's death to record its job, which a worker slowed down by other
-    # processes outlasts (it then exits without a record)
+    # real processes: a sweep's parent killed, its workers left orphaned. Alone on the cores: a worker has at most
+    # GRACE_SECONDS (orphans.py) from its parent's death to record its job, and the test bounds how soon all are
+    # gone
     sw = tmp_path / "sw"
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
     env["HYBRID_SYSID_CACHE"] = str(tiny_cache)  # data=tiny, simulated once for the test run

@@ -4,8 +4,10 @@ drop the jobs not yet started, would go on running the remaining jobs into the d
 
 ``exit_with_parent`` starts, once per worker process, a daemon thread that watches the parent: when it is gone,
 the thread sends this process SIGTERM once (a running job records its interruption, as for a SIGTERM the parent
-passed on; a job not yet started records that it did not start), waits a grace period and ends the process with
-128 + SIGTERM, whether or not it was idle.
+passed on), waits until no job runs in the process (``job_in_progress``: until the job's record is written) and
+ends the process with 128 + SIGTERM: at once if it was idle, at the latest ``GRACE_SECONDS`` after the SIGTERM. The
+bound is generous because a job may be slow to reach its first safe point: a job that has just started imports
+torch and Lightning, several seconds of CPU on a loaded machine, and the record is the point of the wait.
 
 Why a polling thread and not Linux's prctl(PR_SET_PDEATHSIG): the death signal fires when the *thread* that
 started the worker ends, not its process (loky starts replacement workers from its executor-manager thread); set
@@ -17,6 +19,7 @@ at the cost of up to ``POLL_SECONDS`` of delay.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import multiprocessing
 import os
@@ -26,9 +29,22 @@ import time
 
 log = logging.getLogger("hybrid_sysid")
 POLL_SECONDS = 0.5  # how often the parent is checked
-GRACE_SECONDS = 5.0  # from the SIGTERM to the exit: time for the running job to record its interruption
+GRACE_SECONDS = 30.0  # at most, from the SIGTERM to the exit: time for the running job to record its interruption
 _lock = threading.Lock()
 _watching = {"pid": None}  # the process whose watcher runs (a forked child inherits this but not the thread)
+_idle = threading.Event()  # set while no job runs in this process
+_idle.set()
+
+
+@contextlib.contextmanager
+def job_in_progress():
+    """Within: a job runs in this process, up to and including the writing of its record. A worker whose parent
+    is gone exits once no job is in progress (see the module's docstring)."""
+    _idle.clear()
+    try:
+        yield
+    finally:
+        _idle.set()
 
 
 def exit_with_parent(poll: float = POLL_SECONDS, grace: float = GRACE_SECONDS) -> bool:
@@ -62,5 +78,5 @@ def _watch(parent_pid: int, poll: float, grace: float) -> None:
     # the main thread's handler runs: a stop request within a job (recorded at its next safe point), stop_sweep
     # between jobs (remembered)
     os.kill(os.getpid(), signal.SIGTERM)
-    time.sleep(grace)
+    _idle.wait(grace)
     os._exit(128 + signal.SIGTERM)
