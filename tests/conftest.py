@@ -5,6 +5,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 
 pytest.register_assert_rewrite("started_early")  # a plugin below, imported here first
+from app_process import run_app  # noqa: E402
 from started_early import started_early  # noqa: E402
 
 pytest_plugins = [
@@ -50,18 +51,7 @@ def tiny_sweep(tmp, env, tiny_cache):
     test_console.py read, never write: (its process, its sweep directory). A new process, its output captured (not
     a terminal), as `cmd > log 2>&1` would: what a sweep prints, Hydra's multirun, its callbacks and its exit
     status. trainer.progress_bar stays auto, so that no bar in the output shows auto's choice off a terminal."""
-    import subprocess
-
-    env = {**env, "HYBRID_SYSID_CACHE": str(tiny_cache), "HYDRA_FULL_ERROR": "0"}
-    proc = subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid", *TINY_SWEEP, f"hydra.sweep.dir={tmp / 'sw'}"],
-        cwd=tmp,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
-    return proc, tmp / "sw"
+    return run_app(tmp, *TINY_SWEEP, f"hydra.sweep.dir={tmp / 'sw'}", cache=tiny_cache, env=env), tmp / "sw"
 
 
 @pytest.fixture

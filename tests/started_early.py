@@ -143,7 +143,7 @@ _LANE = pytest.StashKey()
 @pytest.fixture(scope="session", autouse=True)
 def _started_early(request, tmp_path_factory):
     lane = request.config.stash[_LANE] = _Lane(request, tmp_path_factory)
-    for item in request.session.items:
+    for item in request.node.items:  # the test run's node: every selected test
         marked = [name for mark in item.iter_markers("started_early") for name in mark.args]
         for name in [*item.fixturenames, *marked]:
             if name in _STARTED:

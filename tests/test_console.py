@@ -4,23 +4,17 @@ command of a missing extra for both kinds of install."""
 
 import json
 import re
-import subprocess
 import sys
 
 import pytest
-from started_early import started_early
 
 from hybrid_sysid.cli.console import ConsoleFilter
 
+from app_process import run_app
+from started_early import started_early
+
 TINY = ["data=tiny", "trainer=debug"]
 BAR = re.compile(r"it/s|\r|█")
-
-
-def run_app(tmp_path, cache, *args, env):
-    """The app in a new process, its output captured (not a terminal), as `cmd > log 2>&1` would."""
-    env = {**env, "HYBRID_SYSID_CACHE": str(cache), "HYDRA_FULL_ERROR": "0"}
-    cli = [sys.executable, "-m", "hybrid_sysid", *args]
-    return subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
 
 
 def test_a_sweep_prints_a_line_per_job_and_its_table(tiny_sweep):
@@ -55,7 +49,7 @@ def test_a_sweep_job_logs_everything_once_into_its_own_file(tiny_sweep):
 def single_run(tmp, env, tiny_cache):
     """A new process: progress_bar=auto asks the real stdout whether it is a terminal, and everything the process
     prints (Lightning's messages, an import's warnings) is what is tested."""
-    return run_app(tmp, tiny_cache, *TINY, f"hydra.run.dir={tmp / 'run'}", env=env)
+    return run_app(tmp, *TINY, f"hydra.run.dir={tmp / 'run'}", cache=tiny_cache, env=env)
 
 
 def test_a_single_run_into_a_file_prints_its_table_without_a_progress_bar(single_run):

@@ -9,10 +9,12 @@ from itertools import islice
 
 import numpy as np
 import pytest
-from started_early import started_early
 
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, RandomWindows
+
+from app_process import user_env
+from started_early import started_early
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 
@@ -72,7 +74,7 @@ def ddp_run(tmp, env, tiny_cache):
             f"data.cache_dir={tiny_cache}",  # data=tiny, simulated once for the test run: both ranks read it
         ],
         cwd=tmp,
-        env={**env, "HYDRA_FULL_ERROR": "0"},
+        env=user_env(env),
         capture_output=True,
         text=True,
         timeout=600,

@@ -18,6 +18,8 @@ import pandas as pd
 import pytest
 import torch
 from omegaconf import OmegaConf
+
+import app_process
 from started_early import started_early
 
 pytestmark = [pytest.mark.integration, pytest.mark.faults]
@@ -39,34 +41,16 @@ TINY = [
 ]
 
 
-def env_for(tmp_path, cache=None, env=None):
-    """The user's environment (``env``, else this process's, without HYDRA_FULL_ERROR); the dataset cache
-    ``cache`` (the shared tiny_cache, whose data=tiny a run then reads instead of simulating), else an empty one of
-    the test's own."""
-    env = {k: v for k, v in (env or os.environ).items() if k != "HYDRA_FULL_ERROR"}
-    return {**env, "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache")}
+# the app's process (app_process.py) with the dataset cache ``cache``: the shared tiny_cache, whose data=tiny a run
+# then reads instead of simulating it, else an empty one of the test's own
 
 
 def launch(tmp_path, *args, cache=None, env=None):
-    return subprocess.Popen(
-        [sys.executable, "-m", "hybrid_sysid", *args],
-        cwd=tmp_path,
-        env=env_for(tmp_path, cache, env),
-        stdout=subprocess.PIPE,
-        stderr=subprocess.STDOUT,
-        text=True,
-    )
+    return app_process.launch(tmp_path, *args, cache=cache or tmp_path / "cache", env=env)
 
 
-def run_app(tmp_path, *args, timeout=600, cache=None, env=None):
-    return subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid", *args],
-        cwd=tmp_path,
-        env=env_for(tmp_path, cache, env),
-        capture_output=True,
-        text=True,
-        timeout=timeout,
-    )
+def run_app(tmp_path, *args, cache=None, env=None):
+    return app_process.run_app(tmp_path, *args, cache=cache or tmp_path / "cache", env=env)
 
 
 def record(run_dir):
@@ -293,7 +277,12 @@ def terminated_evaluation(tmp, env, tiny_run):
     # the default data: simulating it (an empty cache) outlasts the signal's way there
     cli = [sys.executable, "-m", "hybrid_sysid.cli.evaluate", f"run={tiny_run}", "data=default", f"hydra.run.dir={out}"]
     proc = subprocess.Popen(
-        cli, cwd=tmp, env=env_for(tmp, env=env), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True
+        cli,
+        cwd=tmp,
+        env=app_process.user_env(env, tmp / "cache"),
+        stdout=subprocess.PIPE,
+        stderr=subprocess.STDOUT,
+        text=True,
     )
     deadline = time.time() + 600  # until the evaluation locks the dataset cache to simulate the data
     while not any((tmp / "cache").glob("*.lock")) and proc.poll() is None and time.time() < deadline:

@@ -16,6 +16,8 @@ import pytest
 
 from hybrid_sysid.cli.orphans import exit_with_parent
 
+from app_process import user_env
+
 SWEEP = [
     "-m",
     "launcher=joblib",
@@ -120,8 +122,7 @@ def test_a_killed_sweeps_workers_record_the_interruption_and_exit(tmp_path, tiny
     # GRACE_SECONDS (orphans.py) from its parent's death to record its job, and the test bounds how soon all are
     # gone
     sw = tmp_path / "sw"
-    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    env["HYBRID_SYSID_CACHE"] = str(tiny_cache)  # data=tiny, simulated once for the test run
+    env = user_env(cache=tiny_cache)  # data=tiny, simulated once for the test run
     # a file, not a pipe: the workers outlive the parent and would block on a pipe nobody reads
     with open(tmp_path / "out.txt", "w") as out:
         proc = subprocess.Popen(

@@ -11,11 +11,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from started_early import started_early
 
 from hybrid_sysid.cli.predict import main
 
 from estimator_run import predict, recordings  # one trained run (fixtures tiny_run, est) serves both files
+from started_early import started_early
 
 PARAMS = ["p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
 

@@ -23,17 +23,17 @@ Which rule applies depends on what the page says about its runs:
   beyond both.
 """
 
-import os
 import re
 import shlex
 import subprocess
-import sys
 from pathlib import Path
 
 import pytest
 
 from hybrid_sysid.report.provenance import generated_sections, markdown_rows, page_sections, read_provenance
 from hybrid_sysid.report.results_page import write_results
+
+from app_process import run_app
 
 pytestmark = pytest.mark.slow
 
@@ -76,15 +76,7 @@ def test_the_main_job_reproduces_its_table_on_the_results_page(tmp_path):
     app, *overrides = shlex.split(COMMAND)
     assert app == "hybrid-sysid"
     # python -m hybrid_sysid is hybrid-sysid, run by this interpreter; the output is the job's to print
-    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}
-    done = subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid", *overrides, f"hydra.sweep.dir={sweep}"],
-        cwd=REPO,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=3600,
-    )
+    done = run_app(REPO, *overrides, f"hydra.sweep.dir={sweep}", timeout=3600)
     assert done.returncode == 0, done.stderr[-3000:]
     text, _, failed = write_results(tmp_path / "results.md", [sweep], command="the test's sweep")
     assert failed == 0

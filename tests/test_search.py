@@ -15,6 +15,7 @@ import textwrap
 
 import pytest
 import yaml
+
 from started_early import started_early
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')

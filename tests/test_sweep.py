@@ -8,6 +8,8 @@ import sys
 import numpy as np
 import pandas as pd
 import pytest
+
+import app_process
 from started_early import started_early
 
 pytestmark = pytest.mark.integration  # subprocess runs of the app: minutes, still in the default suite
@@ -24,15 +26,7 @@ TINY = [
 def run_app(tmp_path, *args, cache=None, env=None):
     """The app in a new process, as a user starts a sweep; ``cache``: the shared tiny_cache (the jobs then read
     data=tiny instead of simulating it), else an empty one of the test's own; ``env``: else this process's."""
-    env = {**(env or os.environ), "HYBRID_SYSID_CACHE": str(cache or tmp_path / "cache"), "HYDRA_FULL_ERROR": "0"}
-    return subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid", *args],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    return app_process.run_app(tmp_path, *args, cache=cache or tmp_path / "cache", env=env)
 
 
 def test_summary_csv_equals_the_jobs_records(tiny_sweep):

@@ -3,9 +3,7 @@ loss, validation metrics, learning-curve rows and final results, the same number
 the names, tags, artifacts and TensorBoard hparams a user sees, read back from the stores."""
 
 import importlib.util
-import os
 import subprocess
-import sys
 from pathlib import Path
 
 import pandas as pd
@@ -18,6 +16,8 @@ from hybrid_sysid.config import ConfigError, validate
 from hybrid_sysid.training import tracking
 from hybrid_sysid.training.run import train
 from hybrid_sysid.training.tracking import Naming, job_naming
+
+from app_process import run_app
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=60", "trainer.eval_every_n_steps=30"]
 
@@ -283,18 +283,10 @@ def test_a_tracked_sweep_as_a_user_runs_it(tmp_path, tiny_cache):
     pytest.importorskip("tensorboard", reason='needs the loggers extra: pip install -e ".[loggers]"')
     from mlflow import MlflowClient
 
-    env = {**os.environ, "HYBRID_SYSID_CACHE": str(tiny_cache), "HYDRA_FULL_ERROR": "0"}
     args = ["-m", "objective=labelled,hybrid", "data=tiny", "trainer=debug", "trainer.progress_bar=false"]
     args += ["logger=[mlflow,tensorboard]", f"paths.root={tmp_path / 'outputs'}", f"hydra.sweep.dir={tmp_path / 'sw'}"]
     args += ["run_figures=true"]  # a sweep's jobs draw none by default
-    proc = subprocess.run(
-        [sys.executable, "-m", "hybrid_sysid", *args],
-        cwd=tmp_path,
-        env=env,
-        capture_output=True,
-        text=True,
-        timeout=600,
-    )
+    proc = run_app(tmp_path, *args, cache=tiny_cache)
     assert proc.returncode == 0, proc.stderr[-3000:]
     client = MlflowClient(f"sqlite:///{tmp_path / 'outputs' / 'mlflow.db'}")
     exp = client.get_experiment_by_name("sweep:sw")

@@ -12,6 +12,7 @@ import pandas as pd
 import pytest
 import yaml
 from omegaconf import OmegaConf
+
 from started_early import started_early
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')

@@ -91,8 +91,8 @@ def hydra_main(cfg: DictConfig) -> Any:
         sweep_dir=sweep_dir,
         again=f"continue it with resume={run_dir} (a sweep: run the same command again)",
     )
-    drawn = draws_figures(cfg.get("run_figures", "auto"), multirun)
-    if drawn and cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
+    draw = draws_figures(cfg.get("run_figures", "auto"), multirun)
+    if draw and cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
         _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
         log_run_figures(run_dir)  # into the job's MLflow run, now that they exist
     return record
