@@ -137,6 +137,26 @@ def test_curve_points_every_n_steps_and_at_the_end(make_cfg, tmp_path):
     assert sorted(curves.step.unique()) == [20, 40, 50]  # validations at 10, 20, ..., 50; the last one too
 
 
+def test_curves_at_fewer_noise_levels_are_the_same_points(tiny_run, make_cfg, tmp_path):
+    """noise.curve_std: the curves at those levels only, each point the one a run at every level takes (the
+    same training: curve points draw nothing from the training's random streams); the final evaluation still
+    at every level of noise.eval_std."""
+    _, full_dir = tiny_run
+    cfg = make_cfg(*TINY, "noise.curve_std=[0.05]")
+    cfg.data.cache_dir = str(full_dir.parent / "cache")  # tiny_run's dataset, not simulated again
+    train(cfg, tmp_path / "c")
+    full, few = (pd.read_csv(d / "curves.csv") for d in (full_dir, tmp_path / "c"))
+    assert set(zip(few.split, few.noise_std)) == {("train", 0.0), ("test", 0.05)}
+    kept = full[(full.split == "train") | (full.noise_std == 0.05)]
+    key = ["step", "split", "noise_std", "parameter"]
+    pd.testing.assert_frame_equal(
+        few.drop(columns="seconds").sort_values(key, ignore_index=True),
+        kept.drop(columns="seconds").sort_values(key, ignore_index=True),
+    )
+    pred = pd.read_csv(tmp_path / "c" / "predictions.csv")
+    assert set(pred[pred.split == "test"].noise_std) == {0.0, 0.05}
+
+
 def test_test_errors_per_road_class_recombine_into_the_whole_split(tiny_run):
     """metrics.json's by_road_class: per class, the mean of predictions.csv's deviations; weighted by n they
     give back the split's figure."""

@@ -59,6 +59,8 @@ class NoiseConfig:
     # the test noise levels of the final evaluation and the learning curves (hybrid_sysid.training)
     eval_std: List[float] = field(default_factory=lambda: [0.0, 0.01])
     train_std: float = 0.0
+    # the learning curves' test noise levels; null: every level of eval_std
+    curve_std: Optional[List[float]] = None
 
 
 @dataclass

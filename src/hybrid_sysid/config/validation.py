@@ -63,6 +63,10 @@ def validate(cfg: DictConfig) -> None:
             bad("noise.eval_std", list(cfg.noise.eval_std), "every standard deviation must be >= 0")
     if not cfg.noise.eval_std:
         bad("noise.eval_std", [], "give at least one level, e.g. [0.0]")
+    curve_std = cfg.noise.get("curve_std")
+    if curve_std is not None and not (curve_std and all(s >= 0 for s in curve_std)):
+        allowed = "a list of standard deviations >= 0 (at least one), or null for eval_std's"
+        bad("noise.curve_std", list(curve_std), allowed)
     if not cfg.noise.train_std >= 0:
         bad("noise.train_std", cfg.noise.train_std, "must be >= 0")
     if cfg.model.batch_size < 1:

@@ -83,7 +83,9 @@ def train(
         auto_insert_metric_name=False,
     )
     clock = TrainingClock()
-    curves = LearningCurves(clock, _noise_levels(cfg), every_n_steps=cfg.trainer.get("curve_every_n_steps"))
+    curve_std = cfg.noise.get("curve_std")
+    curve_levels = _noise_levels(cfg) if curve_std is None else [float(s) for s in curve_std]
+    curves = LearningCurves(clock, curve_levels, every_n_steps=cfg.trainer.get("curve_every_n_steps"))
     trainer = build_trainer(cfg, run.path, [clock, curves, ckpt, *build_callbacks(cfg, monitor)], loggers)
     dm.setup("fit")
     last = run.resume_checkpoint()
@@ -230,5 +232,6 @@ def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, logg
 
 
 def _noise_levels(cfg: DictConfig) -> list[float]:
-    """The test noise levels (noise.eval_std): the final scores' and the learning curves'."""
+    """The test noise levels (noise.eval_std): the final scores', and the learning curves' unless noise.curve_std
+    names others."""
     return [float(s) for s in cfg.noise.eval_std]
