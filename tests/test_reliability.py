@@ -91,6 +91,22 @@ def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
     )
 
 
+def test_resume_accepts_other_curve_levels_and_a_config_saved_before_them(tmp_path, make_cfg):
+    """noise.curve_std changes which curve rows are recorded, not the weights or the scores: a run saved at every
+    level (or before the key existed) continues with curves at fewer levels."""
+    from omegaconf import OmegaConf
+
+    run = saved_run(tmp_path, make_cfg, *TINY)
+    path = run / ".hydra" / "config.yaml"
+    saved = OmegaConf.load(path)
+    del saved.noise["curve_std"]
+    OmegaConf.save(saved, path)
+    RunDir(run).check_resume(make_cfg(*TINY))
+    RunDir(run).check_resume(make_cfg(*TINY, "noise.curve_std=[0.0]"))
+    with pytest.raises(ConfigError, match="noise.eval_std"):  # the levels of the scores still may not change
+        RunDir(run).check_resume(make_cfg(*TINY, "noise.eval_std=[0.0]"))
+
+
 def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, caplog):
     run = saved_run(tmp_path, make_cfg, *TINY)
     (run / ".hydra" / "config.yaml").write_text("data: {n_roads: [")  # truncated

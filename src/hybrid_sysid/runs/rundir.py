@@ -39,7 +39,9 @@ CHECKPOINTS = ("best.ckpt", "last.ckpt")  # the weights a trained run is used wi
 WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one process that writes there
 # keys that cannot change a run's numbers: a resumed run may differ in them (a name ending in "." frees every key
 # under it: where a run's files go, conf/paths)
-RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths."}
+# keys that cannot change a run's weights or scores: which noise levels the learning curves are taken at changes
+# only which curve rows are recorded (an interrupted sweep made before noise.curve_std existed still continues)
+RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths.", "noise.curve_std"}
 # keys added to the configs after runs were made, with the value that gives a run without them its own numbers:
 # a saved config lacking one of them agrees with that value
 ADDED = {"objective.target": "residual"}
