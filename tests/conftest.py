@@ -4,13 +4,13 @@ import sys
 import pytest
 from hydra import compose, initialize_config_dir
 
-pytest.register_assert_rewrite("started_early")  # a plugin below, imported here first
-from app_process import run_app  # noqa: E402
-from started_early import started_early  # noqa: E402
+pytest.register_assert_rewrite("helpers")  # a plugin below, imported here first
+from helpers.app_process import run_app  # noqa: E402
+from helpers.started_early import started_early  # noqa: E402
 
 pytest_plugins = [
-    "estimator_run",  # the trained run test_estimator.py and test_predict.py share (tiny_run, est)
-    "started_early",  # the processes the tests start early (started_early)
+    "helpers.estimator_run",  # the trained run test_estimator.py and test_predict.py share (tiny_run, est)
+    "helpers.started_early",  # the processes the tests start early (started_early)
 ]
 
 # the datasets the app's subprocesses read in the shared cache (tiny_cache): data=tiny on each car they use

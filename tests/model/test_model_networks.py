@@ -6,7 +6,7 @@ from torch import nn
 
 from hybrid_sysid.model import FastCNN, PaperCNN
 
-from paper_prior import P_MAX, P_MIN, P_SCALE
+from helpers.paper_prior import P_MAX, P_MIN, P_SCALE
 
 
 def test_paper_cnn_layers_match_the_paper():

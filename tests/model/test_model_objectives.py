@@ -4,7 +4,7 @@ import torch
 
 from hybrid_sysid.model import CombinedObjective, HybridObjective, LabelledObjective
 
-from paper_prior import P_SCALE
+from helpers.paper_prior import P_SCALE
 
 
 class LabelGuard(dict):

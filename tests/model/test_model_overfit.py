@@ -5,7 +5,7 @@ import torch
 
 from hybrid_sysid.model import FastCNN, HybridObjective, LabelledObjective
 
-from paper_prior import P_MAX, P_MIN, P_SCALE
+from helpers.paper_prior import P_MAX, P_MIN, P_SCALE
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ import torch
 from hybrid_sysid.model import FastCNN, HybridObjective, LabelledObjective
 from hybrid_sysid.model.module import IdentificationModule
 
-from paper_prior import P_MAX, P_MIN, P_SCALE
+from helpers.paper_prior import P_MAX, P_MIN, P_SCALE
 
 STEPS = 6
 

@@ -4,7 +4,7 @@ import pytest
 
 from hybrid_sysid.report import plotting, run_figures, sweep_figures
 
-from evaluation_fakes import make_sweep
+from helpers.evaluation_fakes import make_sweep
 
 
 @pytest.fixture(scope="module")

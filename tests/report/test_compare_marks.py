@@ -10,7 +10,7 @@ from hybrid_sysid.report.collect import collect
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.tables import compare_marks, summary_table, to_latex, to_markdown
 
-from evaluation_fakes import known_results, make_run, parse_markdown, plain
+from helpers.evaluation_fakes import known_results, make_run, parse_markdown, plain
 
 EPS = 1e-6  # relative distance of a gap from the spread: far above rounding, far below any real difference
 LAB = np.array([0.10, 0.12, 0.14])  # mean 0.12, sample std 0.02

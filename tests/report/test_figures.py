@@ -19,7 +19,7 @@ from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.sweep_figures import DODGE, tuning_figure
 from hybrid_sysid.report.tables import summary_table, to_markdown
 
-from evaluation_fakes import NOISES, OBJECTIVES, PARAMS, known_results, make_run, parse_markdown, plain
+from helpers.evaluation_fakes import NOISES, OBJECTIVES, PARAMS, known_results, make_run, parse_markdown, plain
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -13,7 +13,7 @@ import pytest
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.tables import summary_table, to_latex, to_markdown
 
-from evaluation_fakes import interval, known_results, make_run, parse_markdown, plain
+from helpers.evaluation_fakes import interval, known_results, make_run, parse_markdown, plain
 
 LEVELS = [0.0, 0.003, 0.01, 0.03, 0.1]  # the main job's ladder
 PARAMS = ["p1", "p2"]

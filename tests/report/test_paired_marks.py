@@ -7,7 +7,7 @@ from scipy.stats import wilcoxon
 
 from hybrid_sysid.report.summary import write_summary
 
-from evaluation_fakes import known_results, make_run, parse_markdown
+from helpers.evaluation_fakes import known_results, make_run, parse_markdown
 
 N = 60  # test recordings, shared by every run
 OBJECTIVES = ["combined", "hybrid", "labelled"]

@@ -19,7 +19,7 @@ from hybrid_sysid.report.provenance import (
     sections_without_provenance,
 )
 
-from evaluation_fakes import make_run, make_sweep
+from helpers.evaluation_fakes import make_run, make_sweep
 
 REPO = Path(__file__).resolve().parents[2]
 COMMIT_A = "0123456789abcdef0123456789abcdef01234567"

@@ -7,7 +7,7 @@ import pytest
 
 from hybrid_sysid.cli.report import main
 
-from evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
+from helpers.evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

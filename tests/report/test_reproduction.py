@@ -10,7 +10,7 @@ from omegaconf import OmegaConf
 from hybrid_sysid.cli.report import main
 from hybrid_sysid.report.paper import constant_guess, reproduction_markdown, write_reproduction
 
-from evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
+from helpers.evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
 
 CONFIG = {
     "data": {

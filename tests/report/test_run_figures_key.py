@@ -9,7 +9,7 @@ from hybrid_sysid.cli import report
 from hybrid_sysid.cli.job import draws_figures
 from hybrid_sysid.config import ConfigError, validate
 
-from evaluation_fakes import make_run
+from helpers.evaluation_fakes import make_run
 
 
 def test_auto_draws_for_a_single_run_and_not_for_a_sweeps_jobs():

@@ -12,7 +12,7 @@ from hybrid_sysid.report.collect import collect, find_runs
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.tables import summary_table, to_markdown
 
-from evaluation_fakes import (
+from helpers.evaluation_fakes import (
     FAILED_ERROR,
     NOISES,
     OBJECTIVES,

@@ -10,7 +10,7 @@ from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.sweep_figures import transfer_figure
 from hybrid_sysid.report.tables import compare_marks, summary_table
 
-from evaluation_fakes import PARAMS, known_results, make_run
+from helpers.evaluation_fakes import PARAMS, known_results, make_run
 
 ROWS = ["1 labelled, paper's car", "2 + hybrid adaptation"]
 VALUES = {"seat_shift": (0.19, 0.02), "body_shift": (0.015, 0.011)}  # per row; seed s adds 0.001 * s

@@ -112,8 +112,8 @@ class SweepSummary(Callback):
         # imported here: every parallel worker unpickles this callback for on_job_end and needs none of them
         # (scipy.stats and matplotlib, about a second of CPU per worker: benchmarks/README.md); the loading
         # thread is done first, so no module is imported by two threads at once
-        if _preload:
-            _preload["cancel"].set()
+        if _preload:  # emptied here, so a later sweep of this process starts without it
+            _preload.pop("cancel").set()
             _preload.pop("thread").join()
         from hybrid_sysid.report.paper import write_reproduction
         from hybrid_sysid.report.summary import threads_warning, write_summary

@@ -64,7 +64,8 @@ def test_load_estimator_refuses_a_planted_target_and_runs_nothing(tiny_run, tmp_
 @pytest.mark.parametrize("case", [0, pytest.param(1, marks=pytest.mark.slow)], ids=["read_pickle", "numpy.save"])
 def test_evaluation_refuses_a_planted_target_before_anything_runs(tiny_run, tmp_path, case, cli_in_process):
     # the command's main() in this process, without HYDRA_FULL_ERROR (the user's view: no traceback); an evaluation
-    # refused in a real process: tests/test_transfer.py::test_eval_cli_sweeps_cars_and_refuses_another_objective
+    # refused in a real process:
+    # tests/experiments/test_transfer.py::test_eval_cli_sweeps_cars_and_refuses_another_objective
     from hybrid_sysid.cli.evaluate import main as evaluate
 
     key, node, marker = payloads(tmp_path)[case]

@@ -13,7 +13,7 @@ import pytest
 import yaml
 from omegaconf import OmegaConf
 
-from started_early import started_early
+from helpers.started_early import started_early
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 

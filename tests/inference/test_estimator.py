@@ -14,8 +14,8 @@ from scipy.optimize import curve_fit
 from hybrid_sysid.inference.estimator import InputError, resample_to
 from hybrid_sysid.model.metrics import relative_deviation
 
-from estimator_run import C3, K3, recordings  # the trained run's fixtures, tiny_run and est, come with it
-from started_early import started_early
+from helpers.estimator_run import C3, K3, recordings  # the trained run's fixtures, tiny_run and est, come with it
+from helpers.started_early import started_early
 
 
 def test_predicts_what_training_evaluated(tiny_run, est):

@@ -14,8 +14,8 @@ import pytest
 
 from hybrid_sysid.cli.predict import main
 
-from estimator_run import predict, recordings  # one trained run (fixtures tiny_run, est) serves both files
-from started_early import started_early
+from helpers.estimator_run import predict, recordings  # one trained run (fixtures tiny_run, est) serves both files
+from helpers.started_early import started_early
 
 PARAMS = ["p1", "p1_std", "p2", "p2_std", "m3_from_p1", "m3_from_p2"]
 

@@ -10,8 +10,8 @@ import pytest
 
 from hybrid_sysid.cli.console import ConsoleFilter
 
-from app_process import run_app
-from started_early import started_early
+from helpers.app_process import run_app
+from helpers.started_early import started_early
 
 TINY = ["data=tiny", "trainer=debug"]
 BAR = re.compile(r"it/s|\r|█")

@@ -18,7 +18,7 @@ from hybrid_sysid.inference.estimator import EstimateWarning, Estimator, InputEr
 from hybrid_sysid.model.networks import FastCNN
 from hybrid_sysid.physics import road_profiles, simulate
 
-from estimator_run import (  # the trained run's fixtures, tiny_run and est, come with it
+from helpers.estimator_run import (  # the trained run's fixtures, tiny_run and est, come with it
     C3,
     K3,
     TINY,

@@ -33,11 +33,11 @@ import pytest
 from hybrid_sysid.report.provenance import generated_sections, markdown_rows, page_sections, read_provenance
 from hybrid_sysid.report.results_page import write_results
 
-from app_process import run_app
+from helpers.app_process import run_app
 
 pytestmark = pytest.mark.slow
 
-REPO = Path(__file__).resolve().parents[1]
+REPO = Path(__file__).resolve().parents[2]
 PAGE = REPO / "docs" / "results.md"
 COMMAND = "hybrid-sysid experiment=robustness"  # the README's first command
 CODE = ("src", "pyproject.toml")  # what makes the numbers; the docs and tests do not

@@ -3,7 +3,7 @@ sweep, a full disk, and refusals that must leave nothing behind. A real process 
 (signals, another process's lock, a full disk), those of the signals and the full disk started early, beside other
 tests (started_early.py); a refusal, which ends before any work, and a resume or re-run, which only reads what an
 ended process left, run the command's main() in this process (cli_in_process in conftest.py). Damaged files:
-tests/test_reliability.py."""
+tests/runs/test_reliability.py."""
 
 import json
 import os
@@ -19,8 +19,8 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-import app_process
-from started_early import started_early
+from helpers import app_process
+from helpers.started_early import started_early
 
 pytestmark = [pytest.mark.integration, pytest.mark.faults]
 
@@ -233,7 +233,7 @@ def test_a_refused_evaluation_or_init_from_is_one_line_and_leaves_no_directory(
     tmp_path, truncated_run, case, cli_in_process
 ):
     # in this process (the command's main()): a refusal ends before any work; an evaluation refused in a real
-    # process: tests/test_transfer.py::test_eval_cli_sweeps_cars_and_refuses_another_objective
+    # process: tests/experiments/test_transfer.py::test_eval_cli_sweeps_cars_and_refuses_another_objective
     from hybrid_sysid.cli.evaluate import main as evaluate
     from hybrid_sysid.cli.train import main as train
 
@@ -411,7 +411,7 @@ def refused(proc, *words):
     assert "Traceback" not in proc.stderr
 
 
-# one case per kind of refusal (every value's own check: tests/test_config.py, through the same validate)
+# one case per kind of refusal (every value's own check: tests/config/test_config.py, through the same validate)
 @pytest.mark.parametrize(
     "args, words",
     [
@@ -423,7 +423,8 @@ def refused(proc, *words):
 )
 def test_refusals_are_one_line_and_leave_nothing_behind(tmp_path, args, words, cli_in_process):
     # the command's main() in this process: each refusal ends before any work; a refusal in a real process, one
-    # line and exit 2 as the shell sees them: tests/test_config.py::test_cli_prints_one_line_and_exits_2_before_...
+    # line and exit 2 as the shell sees them:
+    # tests/config/test_config.py::test_cli_prints_one_line_and_exits_2_before_...
     from hybrid_sysid.cli.train import main
 
     (tmp_path / "a_file").write_text("not a directory")

@@ -16,7 +16,7 @@ import pytest
 
 from hybrid_sysid.cli.orphans import exit_with_parent
 
-from app_process import user_env
+from helpers.app_process import user_env
 
 SWEEP = [
     "-m",

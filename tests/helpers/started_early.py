@@ -132,7 +132,7 @@ def pytest_configure(config):
 def pytest_terminal_summary(terminalreporter, config):
     lane = config.stash.get(_LANE, None)
     if lane is not None and lane.seconds:
-        terminalreporter.write_sep("=", "processes started early (tests/started_early.py)")
+        terminalreporter.write_sep("=", "processes started early (tests/helpers/started_early.py)")
         for line in lane.summary():
             terminalreporter.write_line(line)
 

@@ -16,7 +16,7 @@ import textwrap
 import pytest
 import yaml
 
-from started_early import started_early
+from helpers.started_early import started_early
 
 optuna = pytest.importorskip("optuna", reason='needs the search extra: pip install -e ".[search]"')
 

@@ -9,8 +9,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-import app_process
-from started_early import started_early
+from helpers import app_process
+from helpers.started_early import started_early
 
 pytestmark = pytest.mark.integration  # subprocess runs of the app: minutes, still in the default suite
 

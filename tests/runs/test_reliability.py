@@ -195,7 +195,7 @@ def test_each_file_a_run_writes_truncated_then_the_next_command_recovers(finishe
     finally:
         torch.set_num_threads(n_threads)
     assert again["status"] == "completed"
-    # the tolerance of tests/test_faults.py: a first run in a process may differ from a later one in the last digits
+    # the tolerance of tests/cli/test_faults.py: a first run in a process may differ from a later one in the last digits
     assert [n[:3] for n in numbers(again)] == [n[:3] for n in numbers(record)]
     assert [n[3] for n in numbers(again)] == pytest.approx([n[3] for n in numbers(record)], rel=1e-5, abs=1e-7)
     if name.endswith("ckpt") or name == "both checkpoints":

@@ -13,8 +13,8 @@ import pytest
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, RandomWindows
 
-from app_process import user_env
-from started_early import started_early
+from helpers.app_process import user_env
+from helpers.started_early import started_early
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 

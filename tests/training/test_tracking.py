@@ -17,7 +17,7 @@ from hybrid_sysid.training import tracking
 from hybrid_sysid.training.run import train
 from hybrid_sysid.training.tracking import Naming, job_naming
 
-from app_process import run_app
+from helpers.app_process import run_app
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=60", "trainer.eval_every_n_steps=30"]
 
