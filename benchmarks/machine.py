@@ -1,7 +1,7 @@
 """What the benchmarks print about the machine they ran on: its CPU (the name a run record stores) and its load,
 since on shared virtual machines a timing depends on both more than on the code."""
 
-from hybrid_sysid.runs.records import cpu_model
+from hybrid_sysid.runs.provenance import cpu_model
 
 
 def cpu_name() -> str:

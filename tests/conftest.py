@@ -75,14 +75,11 @@ def cli_in_process(monkeypatch, capfd):
     For a refusal, which ends before any work, a new process would only add seconds of imports; a test that needs
     a real process (signals, another process's lock, an interpreter's own output) starts one. Reset around the
     call: the working directory, the environment (no HYDRA_FULL_ERROR, as a user has it), sys.argv, the state the
-    command keeps for its one process (hybrid_sysid.cli.job), the locks it took and Hydra's global instance."""
-    import copy
-
+    command keeps for its one process (hybrid_sysid.cli.process), the locks it took and Hydra's global instance."""
     from hydra.core.global_hydra import GlobalHydra
 
-    import hybrid_sysid.cli.job as job
-
-    fresh = copy.deepcopy(job._state)  # as a new process has it (a test may run several commands)
+    from hybrid_sysid.cli.process import PROCESS
+    from hybrid_sysid.runs import locks
 
     def run(main, *args, cwd, env=None):
         monkeypatch.chdir(cwd)
@@ -90,8 +87,7 @@ def cli_in_process(monkeypatch, capfd):
         for key, value in (env or {}).items():
             monkeypatch.setenv(key, str(value))
         monkeypatch.setattr(sys, "argv", [main.__module__, *map(str, args)])
-        state = copy.deepcopy(fresh)
-        monkeypatch.setattr(job, "_state", state)
+        PROCESS.reset()  # as a new process has it (a test may run several commands)
         capfd.readouterr()
         try:
             main()
@@ -99,8 +95,8 @@ def cli_in_process(monkeypatch, capfd):
         except SystemExit as exc:
             code = exc.code
         finally:
-            for lock in state["locks"].values():
-                lock.release()
+            locks.release_all()
+            PROCESS.reset()
             GlobalHydra.instance().clear()
         out = capfd.readouterr()
         return code, out.out, out.err

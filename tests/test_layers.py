@@ -1,5 +1,6 @@
 """The package's folders are its layers and import one way (docs/design.md, "Architecture"); no two modules import
-each other, directly or round a loop; no private name crosses modules."""
+each other, directly or round a loop; no private name crosses modules, and no module reads another object's
+private attribute or a network's buffers (what a network provides is declared: model/base.py)."""
 
 import ast
 import sys
@@ -74,6 +75,44 @@ def test_imports_go_down_only_and_take_no_private_names(name, tree):
         assert layer_of(target) <= layer_of(name), f"{name} imports {module} from a higher layer"
         private = [n for n in names if n.startswith("_")]
         assert not private, f"{name} imports the private name(s) {private} from {module}"
+
+
+def private_attributes(tree) -> list[str]:
+    """``obj._name`` where obj is not the object itself (self, cls): another object's internals, a library's
+    included. Dunder names (``__class__``) are public, and so are a config's ``_target_`` (a key of the data)
+    and ``os._exit`` (documented)."""
+    found = []
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__"):
+            owner = ast.unparse(node.value)
+            if owner not in ("self", "cls") and node.attr != "_target_" and f"{owner}.{node.attr}" != "os._exit":
+                found.append(f"{ast.unparse(node)} (line {node.lineno})")
+    return found
+
+
+def buffer_reads(tree) -> list[str]:
+    """Calls that reach into a module's registered buffers by name (a network's head, say)."""
+    return [
+        f"{ast.unparse(node)} (line {node.lineno})"
+        for node in ast.walk(tree)
+        if isinstance(node, ast.Call)
+        and isinstance(node.func, ast.Attribute)
+        and node.func.attr in ("named_buffers", "get_buffer", "buffers")
+    ]
+
+
+@pytest.mark.parametrize("name, tree", list(modules()), ids=lambda x: x if isinstance(x, str) else "")
+def test_no_private_attribute_of_another_object(name, tree):
+    assert not private_attributes(tree), f"{name} reads private attributes: {private_attributes(tree)}"
+    if layer_of(name) != layer_of("hybrid_sysid.model"):
+        assert not buffer_reads(tree), f"{name} reads a network's buffers: {buffer_reads(tree)}"
+
+
+def test_the_private_attribute_check_finds_one():
+    """The checks above are not vacuous: a network's buffers and a logger's private client are found."""
+    tree = ast.parse("bounds = dict(net.named_buffers())\nclient = logger._mlflow_client\nself._own = 1")
+    assert private_attributes(tree) == ["logger._mlflow_client (line 2)"]
+    assert buffer_reads(tree) == ["net.named_buffers() (line 1)"]
 
 
 def test_no_import_cycle():

@@ -14,7 +14,7 @@ __version__ = "0.1.0"
 def __getattr__(name):
     # `import hybrid_sysid.physics` runs this file and must stay numpy-only: torch loads only when asked for
     if name == "load_estimator":
-        from hybrid_sysid.inference.estimator import load_estimator
+        from hybrid_sysid.inference.loading import load_estimator
 
         return load_estimator
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

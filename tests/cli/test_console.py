@@ -98,7 +98,7 @@ def test_a_job_line_estimates_the_time_left():
     import time
     from types import SimpleNamespace
 
-    from hybrid_sysid.report.sweep_callback import job_line
+    from hybrid_sysid.cli.progress import job_line
 
     header = {"jobs": 9, "swept": ["objective", "seed"], "start": time.time() - 60}
     record = {"status": "completed", "results": [
@@ -136,7 +136,7 @@ def test_help_of_predict_and_report_and_their_key_value_errors(capsys):
     with pytest.raises(SystemExit) as exit_:
         predict.main(["--run=outputs/runs/x", "input=a.csv"])
     err = capsys.readouterr().err
-    assert exit_.value.code == 2 and "options are key=value without dashes (run=outputs/runs/x)" in err
+    assert exit_.value.code == 2 and "is not allowed: key=value without dashes (run=outputs/runs/x)" in err
 
 
 @pytest.mark.parametrize(
@@ -151,7 +151,7 @@ def test_a_missing_extra_names_the_install_command_of_this_install(monkeypatch, 
     import importlib.metadata
     from types import SimpleNamespace
 
-    from hybrid_sysid.cli import job
+    from hybrid_sysid.cli import extras as job
 
     text = None if direct_url is None else json.dumps(direct_url)
     monkeypatch.setattr(importlib.metadata, "distribution", lambda name: SimpleNamespace(read_text=lambda f: text))

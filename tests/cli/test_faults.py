@@ -171,7 +171,7 @@ def test_a_directory_another_process_holds_is_refused_before_anything_is_written
     """The lock alone, held here as another writer would hold it: the command is refused in one line, exit 2,
     and nothing in the directory changes (the test below has a real first writer finish)."""
     # a new process: the lock is another process's (this one holds it)
-    from hybrid_sysid.runs.rundir import hold_for_writing
+    from hybrid_sysid.runs.locks import hold_for_writing
 
     where = tmp_path / "held"
     where.mkdir()

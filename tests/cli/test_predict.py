@@ -74,8 +74,8 @@ def test_bad_input_exits_2_with_one_line_in_a_real_process(short_input):
     done, csv = short_input
     assert done.returncode == 2 and done.stdout == ""
     assert done.stderr.splitlines() == [
-        f"hybrid-sysid-predict: error: input = {csv}: recording 0 has 150 steps; "
-        "allowed: at least the run's data.window = 200 steps (1 s)"
+        f"hybrid-sysid-predict: error: input = {csv}: recording 0 = 150 steps is not allowed: "
+        "at least the run's data.window = 200 steps (1 s)"
     ]
 
 
@@ -130,81 +130,86 @@ def edit(df, **changes):
 BAD_CSV = {  # name: (frame -> text written as the input file, message)
     "short": (
         lambda df: df.head(150).to_csv(index=False),
-        r"input = .*bad.csv: recording 0 has 150 steps; allowed: at least the run's data.window = 200 steps",
+        r"input = .*bad.csv: recording 0 = 150 steps is not allowed: at least the run's data.window = 200 steps",
     ),
     "nan": (
         lambda df: edit(df, seat_acc=(5, "nan")).to_csv(index=False),
-        r"seat_acc of recording 0 holds nan at step 5: every value must be finite",
+        r"seat_acc of recording 0 at step 5 = nan is not allowed: finite values",
     ),
     "empty cell": (
         lambda df: edit(df, seat_acc=(5, "")).to_csv(index=False),
-        r"seat_acc of recording 0 holds nan at step 5: every value must be finite",
+        r"seat_acc of recording 0 at step 5 = nan is not allowed: finite values",
     ),
     "inf": (
         lambda df: edit(df, seat_acc=(7, "-inf")).to_csv(index=False),
-        r"seat_acc of recording 0 holds -inf at step 7: every value must be finite",
+        r"seat_acc of recording 0 at step 7 = -inf is not allowed: finite values",
     ),
     "text": (
         lambda df: edit(df, seat_acc=(3, "1.2.3")).to_csv(index=False),
-        r"column seat_acc holds '1.2.3' in data row 4; allowed: numbers",
+        r"column seat_acc in data row 4 = '1.2.3' is not allowed: numbers",
     ),
     "missing column": (
         lambda df: df.drop(columns="body_acc").to_csv(index=False),
-        r"bad.csv has no column body_acc \(its columns: time, seat_acc\); needed: seat_acc, body_acc",
+        r"bad.csv is not allowed: columns seat_acc, body_acc, and time or dt= \(it has no body_acc; its columns: time, "
+        r"seat_acc\)",
     ),
     "no time": (
         lambda df: df.drop(columns="time").to_csv(index=False),
-        r"has no column time \(its columns: seat_acc, body_acc\); needed: .* and time or dt=",
+        r"is not allowed: columns seat_acc, body_acc, and time or dt= \(it has no time; its columns: seat_acc, "
+        r"body_acc\)",
     ),
-    "empty": (lambda df: "", r"bad.csv is empty"),
-    "header only": (lambda df: "time,seat_acc,body_acc\n", r"bad.csv holds a header but no rows"),
+    "empty": (lambda df: "", r"bad.csv is not allowed: a CSV or .npz file of recordings, not an empty one"),
+    "header only": (lambda df: "time,seat_acc,body_acc\n", r"bad.csv is not allowed: .*it holds a header but no rows"),
     "not uniform": (
         lambda df: df.drop(index=100).to_csv(index=False),
-        r"column time of recording 0 is not uniform: from 0.495 s to 0.505 s is a step of 0.01 s "
-        r"against a mean of 0.005\d* s; allowed: increasing times, every step within 1% of the mean",
+        r"column time of recording 0 = a step of 0.01 s from 0.495 s to 0.505 s is not allowed: uniform, increasing "
+        r"times, every step within 1% of the mean, 0.005\d* s",
     ),
-    "decreasing": (lambda df: df[::-1].to_csv(index=False), r"is not uniform: .*allowed: increasing times"),
+    "decreasing": (lambda df: df[::-1].to_csv(index=False), r"is not allowed: uniform, increasing times"),
     "other dt": (
         lambda df: df.assign(time=df.time * 0.8).to_csv(index=False),
-        r"input = .*bad.csv: dt = 0.004 s differs from the run's data.dt = 0.005 s; allowed: within 1e-09 "
-        r"relative, or pass resample=true",
+        r"input = .*bad.csv: dt = 0.004 is not allowed: the run's data.dt = 0.005 s within 1e-09 relative, or "
+        r"resample=true",
     ),
     "two rates": (
         lambda df: pd.concat([df.assign(recording="a"), df.assign(recording="b", time=df.time / 2)]).to_csv(
             index=False
         ),
-        r"recording 'b' has a time step of 0.0025 s, recording 'a' 0.005 s; allowed: one sample rate",
+        r"the time step of recording 'b' = 0.0025 s is not allowed: one sample rate per file, recording 'a''s 0.005 s",
     ),
-    "binary": (lambda df: b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe\xfd" * 50, r"bad.csv cannot be read as CSV \(Unicode"),
+    "binary": (
+        lambda df: b"\x89PNG\r\n\x1a\n\x00\x00\xff\xfe\xfd" * 50,
+        r"bad.csv is not allowed: a file that can be read as CSV \(Unicode",
+    ),
     "beyond float32": (
         lambda df: edit(df, seat_acc=(5, "1e300")).to_csv(index=False),
-        r"seat_acc of recording 0 holds 1e\+300 at step 5: beyond float32's range, in which the network reads it; "
-        r"allowed: magnitudes up to 3.40282e\+38",
+        r"seat_acc of recording 0 at step 5 = 1e\+300 is not allowed: magnitudes up to 3.40282e\+38, float32's "
+        r"range, in which the network reads it",
     ),
     "beyond float32, negative": (
         lambda df: edit(df, body_acc=(9, -3.5e38)).to_csv(index=False),
-        r"body_acc of recording 0 holds -3.5e\+38 at step 9: beyond float32's range",
+        r"body_acc of recording 0 at step 9 = -3.5e\+38 is not allowed: magnitudes up to",
     ),
     "column twice": (
         lambda df: duplicated(df).to_csv(index=False),
-        r"input = .*bad.csv: column seat_acc appears 2 times in the header \(columns 2, 4\); allowed: each of "
+        r"input = .*bad.csv: column seat_acc = 2 times in the header \(columns 2, 4\) is not allowed: each of "
         r"seat_acc, body_acc, time, recording once",
     ),
     "column twice, spaced": (
         lambda df: duplicated(df).to_csv(index=False).replace(",", ", ", 3),  # the header's three commas
-        r"column seat_acc appears 2 times in the header \(columns 2, 4\)",
+        r"column seat_acc = 2 times in the header \(columns 2, 4\)",
     ),
     "time twice": (
         lambda df: df.assign(t2=df.time).rename(columns={"t2": "time"}).to_csv(index=False),
-        r"column time appears 2 times in the header \(columns 1, 4\)",
+        r"column time = 2 times in the header \(columns 1, 4\)",
     ),
     "true/false": (
         lambda df: df.assign(seat_acc=np.where(df.seat_acc > 0, "True", "False")).to_csv(index=False),
-        r"input = .*bad.csv: column seat_acc holds (True|False) in data row 1; allowed: numbers, not true/false",
+        r"input = .*bad.csv: column seat_acc in data row 1 = (True|False) is not allowed: numbers, not true/false",
     ),
     "true/false with an empty cell": (
         lambda df: df.assign(body_acc=[""] + ["true", "false"] * ((len(df) - 1) // 2) + ["true"]).to_csv(index=False),
-        r"column body_acc holds True in data row 2; allowed: numbers, not true/false",
+        r"column body_acc in data row 2 = True is not allowed: numbers, not true/false",
     ),
 }
 
@@ -242,42 +247,45 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
         ((run, inp, "windows=two"), r"windows = 'two' is not allowed: an integer >= 1"),
         (
             (run, inp, "windows=202"),
-            r"windows = 202 is not allowed for recording 0: its 400 steps offer 201 "
-            r"distinct starts of a 200-step window; allowed: 1 to 201",
+            r"windows = 202 is not allowed: 1 to 201 for recording 0: its 400 steps offer 201 "
+            r"distinct starts of a 200-step window",
         ),
         ((run, inp, "resample=maybe"), r"resample = 'maybe' is not allowed: true or false"),
         ((run, inp, "dt=0"), r"dt = '0' is not allowed: a sampling interval > 0 in seconds"),
         (
             (run, inp, "dt=0.0025"),
-            r"dt = 0.0025 s disagrees with the time step of recording 0 of input = .*rec.csv "
-            r"\(0.005 s\); allowed: within 1%, or leave dt= out",
+            r"dt = 0.0025 is not allowed: the time step of recording 0 of input = .*rec.csv, 0.005 s, within 1%, "
+            r"or no dt= at all",
         ),
         (
             (run, inp, "seed=3"),
-            r"unknown key 'seed' in 'seed=3'; allowed keys: run, input, output, overwrite, windows, "
-            r"resample, dt",
+            r"seed is not allowed: a key one of run, input, output, overwrite, windows, resample, dt "
+            r"\(in 'seed=3'\)",
         ),
-        ((run, inp, "windows"), r"argument 'windows' is not key=value"),
-        ((run, inp, inp), r"input is given twice"),
-        ((run,), r"input= is missing; usage: hybrid-sysid-predict run=DIR input=FILE"),
+        ((run, inp, "windows"), r"windows is not allowed: key=value, a key one of run"),
+        ((run, inp, inp), r"input is not allowed: once \(it is given twice"),
+        ((run,), r"input is missing: usage: hybrid-sysid-predict run=DIR input=FILE"),
         (
             (run, inp, f"output={tmp_path / 'nowhere' / 'out.csv'}"),
-            r"output = .*out.csv: its directory .*nowhere "
-            r"does not exist",
+            r"output = .*out.csv is not allowed: a file in a directory that exists \(.*nowhere "
+            r"does not\)",
         ),
-        ((run, f"input={tmp_path}"), r"cannot be read as CSV \(IsADirectoryError"),
-        ((run, f"input={tmp_path / 'no_dt.npz'}"), r"no_dt.npz has no array dt \(its arrays: seat_acc, body_acc\)"),
-        ((run, f"input={tmp_path / 'two_dt.npz'}"), r"array dt is \[0.005, 0.005\]; allowed: one number > 0"),
-        ((run, f"input={tmp_path / 'text.npz'}"), r"text.npz cannot be read as .npz"),
+        ((run, f"input={tmp_path}"), r"is not allowed: a file that can be read as CSV \(IsADirectoryError"),
+        (
+            (run, f"input={tmp_path / 'no_dt.npz'}"),
+            r"no_dt.npz is not allowed: .*\(it has no array dt; its arrays: seat_acc, body_acc\)",
+        ),
+        ((run, f"input={tmp_path / 'two_dt.npz'}"), r"array dt = \[0.005, 0.005\] is not allowed: one number > 0"),
+        ((run, f"input={tmp_path / 'text.npz'}"), r"text.npz is not allowed: a file that can be read as .npz"),
         (
             (f"run={tmp_path / 'nothing'}", inp),
-            r"run = .*nothing has no .hydra/config.yaml; allowed: a run "
-            r"directory written by hybrid-sysid",
+            r"run = .*nothing is not allowed: it has no .hydra/config.yaml \(a run "
+            r"directory written by hybrid-sysid\)",
         ),
         (
             (f"run={tmp_path / 'untrained'}", inp),
-            r"run = .*untrained has no checkpoint .*best.ckpt or "
-            r".*last.ckpt; allowed: a run that trained a network",
+            r"run = .*untrained is not allowed: a run that trained a network, with checkpoints/best.ckpt or "
+            r"last.ckpt",
         ),
     ]
     for argv, message in cases:
@@ -310,7 +318,7 @@ def test_output_never_replaces_the_input(tiny_run, est, tmp_path, capsys, monkey
             code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", f"output={output}", *extra)
             assert code == 2 and out == "", (output, extra, err)
             assert err.splitlines() == [
-                f"hybrid-sysid-predict: error: output = {output} is the input file (input = {csv}); allowed: "
+                f"hybrid-sysid-predict: error: output = {output} is not allowed: it is the input file (input = {csv}); "
                 "another file, an output never replaces its input"
             ]
             assert files_under(tmp_path) == before, (output, extra)
@@ -332,16 +340,23 @@ def test_output_never_replaces_a_runs_files(tiny_run, est, tmp_path, capsys):
     (tmp_path / "to_record.csv").symlink_to(run / "metrics.json")
     before = files_under(tmp_path)
     assert run / "metrics.json" in before and run / "checkpoints" / "best.ckpt" in before
-    in_run = rf"lies inside the run directory run = {re.escape(str(run))}; allowed: a path outside run directories"
+    in_run = rf"is not allowed: it lies inside the run directory run = {re.escape(str(run))}; a path outside run "
+    in_run += "directories"
     cases = [
         (run / "metrics.json", in_run),
         (run / "checkpoints" / "best.ckpt", in_run),
         (run / ".hydra" / "config.yaml", in_run),
         (run / "estimates.csv", in_run),
         (tmp_path / "to_record.csv", in_run),
-        (other / "estimates.csv", r"lies inside the run directory .*other \(it holds metrics.json\); allowed: a path"),
-        (other / "plots" / "estimates.csv", r"lies inside the run directory .*other \(it holds metrics.json\)"),
-        (configured / "estimates.csv", r"lies inside the run directory .*configured \(it holds .hydra/config.yaml\)"),
+        (
+            other / "estimates.csv",
+            r"is not allowed: it lies inside the run directory .*other \(it holds metrics.json\); a",
+        ),
+        (other / "plots" / "estimates.csv", r"is not allowed: it lies inside the run directory .*other \(it holds "),
+        (
+            configured / "estimates.csv",
+            r"is not allowed: it lies inside the run directory .*configured \(it holds .hydra/config.yaml\)",
+        ),
     ]
     for output, message in cases:
         for extra in ((), ("overwrite=true",)):
@@ -362,7 +377,8 @@ def test_existing_output_needs_overwrite_true(tiny_run, est, tmp_path, capsys, m
     code, printed, err = predict(capsys, run, inp, f"output={out}")
     assert code == 2 and printed == "" and out.read_text() == "keep me\n"
     assert err.splitlines() == [
-        f"hybrid-sysid-predict: error: output = {out} exists; allowed: a new file, or overwrite=true to replace it"
+        f"hybrid-sysid-predict: error: output = {out} is not allowed: it exists; a new file, or overwrite=true to "
+        "replace it"
     ]
     code, _, err = predict(capsys, run, inp, f"output={out}", "overwrite=maybe")
     assert code == 2 and re.search(r"overwrite = 'maybe' is not allowed: true or false", err)
@@ -389,8 +405,8 @@ def test_existing_output_needs_overwrite_true(tiny_run, est, tmp_path, capsys, m
     code, _, err = predict(capsys, run, inp, f"output={late}")
     assert code == 2 and late.read_text() == "someone else's\n"
     assert err.splitlines() == [
-        f"hybrid-sysid-predict: error: output = {late} appeared while the recordings were estimated and is left "
-        "as it is; allowed: a new file, or overwrite=true to replace it"
+        f"hybrid-sysid-predict: error: output = {late} is not allowed: it appeared while the recordings were "
+        "estimated and is left as it is; a new file, or overwrite=true to replace it"
     ]
     assert sorted(p.name for p in tmp_path.iterdir()) == ["estimates.csv", "late.csv", "rec.csv"]  # no temp file
 
@@ -405,12 +421,12 @@ def test_bool_complex_and_overflowing_npz_arrays(tiny_run, est, tmp_path, capsys
         "big": dict(seat_acc=seat, body_acc=big),
     }
     messages = {
-        "bool": r"bool.npz: array seat_acc has dtype bool and shape \(2, 300\); allowed: real numbers \(a float or "
+        "bool": r"bool.npz: array seat_acc = dtype bool, shape \(2, 300\) is not allowed: real numbers \(a float or "
         r"integer array, not bool or complex\)",
-        "complex": r"complex.npz: array body_acc has dtype complex128 and shape \(2, 300\); allowed: real numbers "
+        "complex": r"complex.npz: array body_acc = dtype complex128, shape \(2, 300\) is not allowed: real numbers "
         r"\(a float or integer array, not bool or complex\)",
-        "big": r"big.npz: body_acc of recording 1 holds -1e\+39 at step 9: beyond float32's range, in which the "
-        r"network reads it; allowed: magnitudes up to 3.40282e\+38",
+        "big": r"big.npz: body_acc of recording 1 at step 9 = -1e\+39 is not allowed: magnitudes up to 3.40282e\+38, "
+        r"float32's range, in which the network reads it",
     }
     for name, content in arrays.items():
         np.savez(tmp_path / f"{name}.npz", dt=est.dt, **content)
@@ -433,7 +449,7 @@ def test_a_column_named_like_pandas_renames_a_duplicate_is_read(tiny_run, est, t
 def test_windows_beyond_the_memory_available_are_refused(tiny_run, est, tmp_path, capsys, monkeypatch):
     """A window of 2 x 200 steps takes 8000 bytes: 3200 as float64, twice (cut, then stacked), and 1600 as the
     float32 copy the network reads. With 800 kB available, 100 windows fit and 101 do not."""
-    import hybrid_sysid.inference.estimator as estimator
+    import hybrid_sysid.inference.memory as estimator
 
     monkeypatch.setattr(estimator, "available_memory", lambda: 800_000)
     seat, body, _ = recordings(1, 400, est.dt)
@@ -441,9 +457,9 @@ def test_windows_beyond_the_memory_available_are_refused(tiny_run, est, tmp_path
     code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", "windows=101")
     assert code == 2 and out == ""
     assert err.splitlines() == [
-        f"hybrid-sysid-predict: error: input = {csv}: windows = 101 is not allowed for recording 0 (400 steps): "
-        f"101 windows of 2 x 200 steps need {101 * 8000 / 2**30:.3g} GiB of memory (float64, cut and stacked, "
-        f"plus a float32 copy of up to 4096 windows) and {800_000 / 2**30:.3g} GiB is available; allowed: 1 to 100"
+        f"hybrid-sysid-predict: error: input = {csv}: windows = 101 is not allowed: 1 to 100 for recording 0 (400 "
+        f"steps): 101 windows of 2 x 200 steps need {101 * 8000 / 2**30:.3g} GiB of memory (float64, cut and "
+        f"stacked, plus a float32 copy of up to 4096 windows) and {800_000 / 2**30:.3g} GiB is available"
     ]
     code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", "windows=100")
     assert code == 0 and len(out.splitlines()) == 2, err

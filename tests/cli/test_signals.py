@@ -8,19 +8,21 @@ import signal
 import pytest
 
 from hybrid_sysid.cli import job
+from hybrid_sysid.cli.process import PROCESS, SIGNALS
 from hybrid_sysid.core import stop
+from hybrid_sysid.runs import locks
 
 
 @pytest.fixture
 def fresh_job_state(monkeypatch):
     """run_job keeps what a command's process shares (the signal received, its handlers): restored after."""
-    handlers = {s: signal.getsignal(s) for s in job.SIGNALS}
-    monkeypatch.setitem(job._state, "received", None)
-    monkeypatch.setitem(job._state, "locks", {})
+    handlers = {s: signal.getsignal(s) for s in SIGNALS}
+    PROCESS.reset()
     yield
     for s, handler in handlers.items():
         signal.signal(s, handler)
-    stop.clear()
+    locks.release_all()
+    PROCESS.reset()
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])

@@ -11,22 +11,22 @@ from omegaconf.errors import ConfigKeyError, ValidationError
 from hybrid_sysid.config import ConfigError, validate
 
 BAD = [
-    (["data.window=1300"], r"data.window = 1300 is not allowed: must lie in \[16, data.n_steps = 1200\]"),
-    (["model=paper_cnn", "data.window=40"], r"data.window = 40 is not allowed: must lie in \[59, data.n_steps"),
+    (["data.window=1300"], r"data.window = 1300 is not allowed: must lie in \[16, n_steps = 1200\]"),
+    (["model=paper_cnn", "data.window=40"], r"model.net.window = 40 is not allowed: must be an integer >= 59"),
     (["data.dt=0"], r"data.dt = 0.0 is not allowed: must be > 0"),
     (["data.dt=0.05"], r"data.dt = 0.05 is not allowed: the semi-implicit Euler scheme is unstable above 0.036"),
     (["data.speed=-2"], r"data.speed = -2.0 is not allowed: must be > 0"),
     (
         ["data.measurement=continuous", "data.dt=0.5"],
-        r"data.dt = 0.5 is not allowed: with data.measurement = continuous its Nyquist frequency, 1 Hz, lies below "
-        r"the road's content at data.speed = 15 m/s \(up to 45 Hz",
+        r"data.dt = 0.5 is not allowed: with measurement = continuous its Nyquist frequency, 1 Hz, lies below "
+        r"the road's content at speed = 15 m/s \(up to 45 Hz",
     ),
     (
         ["trainer.curve_every_n_steps=250"],
         r"trainer.curve_every_n_steps = 250 is not allowed: a multiple of "
         r"trainer.eval_every_n_steps = 200",
     ),
-    (["data.n_roads=2"], r"data.n_roads = 2 is too few for data.train_fraction = 0.8"),
+    (["data.n_roads=2"], r"data.n_roads = 2 is not allowed: too few for train_fraction = 0.8"),
     (["data.train_fraction=1.0"], r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
     (["data.train_fraction=0"], r"data.train_fraction = 0.0 is not allowed: must lie in \(0, 1\)"),
     (["data.m3_min=150", "data.m3_max=100"], r"data.m3_max = 100 is not allowed: empty mass range"),
@@ -37,12 +37,12 @@ BAD = [
     (["noise.curve_std=[]"], r"noise.curve_std = \[\] is not allowed: a list of standard deviations >= 0"),
     (["noise.curve_std=[0.0,inf]"], r"noise.curve_std = \[0.0, inf\] is not allowed: every value must be finite"),
     (["noise.train_std=-1"], r"noise.train_std = -1.0 is not allowed: must be >= 0"),
-    (["model.batch_size=0"], r"model.batch_size = 0 is not allowed: must be >= 1"),
+    (["model.batch_size=0"], r"model.batch_size = 0 is not allowed: must be an integer >= 1"),
     (["model.optim.lr=0"], r"model.optim.lr = 0.0 is not allowed: must be > 0"),
     (["model.optim.lr=-0.1"], r"model.optim.lr = -0.1 is not allowed: must be > 0"),
     (
         ["objective=combined", "objective.labelled_weight=0", "objective.hybrid_weight=0"],
-        r"objective.labelled_weight / objective.hybrid_weight = \[0, 0\] is not allowed: .*not both be zero",
+        r"objective.hybrid_weight = 0 is not allowed: .*not both be zero",
     ),
     (["trainer.max_steps=0"], r"trainer.max_steps = 0 is not allowed: must be >= 1"),
     (["data.integration=series"], r"data.integration = 'series' is not allowed: one of t0, window"),
@@ -52,11 +52,11 @@ BAD = [
     ),
     (
         ["objective=hybrid_bandpass", "data.window=150"],
-        r"objective.filter.taps = 151 is not allowed: must be <= data.window - 9 = 141",
+        r"objective.filter.taps = 151 is not allowed: must be <= window - 9 = 141",
     ),
     (
         ["objective=hybrid", "objective.weighting=eiv"],
-        r"objective.weighting = 'eiv' is not allowed without objective.filter",
+        r"objective.weighting = 'eiv' is not allowed: none without a filter",
     ),
     (["objective=hybrid", "objective.weighting=tls"], r"objective.weighting = 'tls' is not allowed: one of none, eiv"),
     (["baseline=ls_bandpass_m3", "baseline.unknown=k3"], r"baseline.unknown = 'k3' is not allowed: one of p, m3"),
@@ -89,10 +89,10 @@ BAD = [
     # the optimiser, the schedule, the network's and the objective's own arguments
     (["model.optim.name=sgd"], r"model.optim.name = 'sgd' is not allowed: one of adam, adamw"),
     (["model.optim.schedule=linear"], r"model.optim.schedule = 'linear' is not allowed: one of constant, onecycle"),
-    (["model.net.kernel_size=4"], r"model.net.kernel_size = 4 is invalid; it must be odd"),
-    (["model.net.downsample=avg"], r"model.net.downsample = 'avg' is unknown"),
-    (["+model.net.no_such_arg=1"], r"model.net: .*unexpected keyword argument 'no_such_arg'"),
-    (["objective.norm=l3"], r"objective.norm = 'l3' is unknown"),
+    (["model.net.kernel_size=4"], r"model.net.kernel_size = 4 is not allowed: an odd integer"),
+    (["model.net.downsample=avg"], r"model.net.downsample = 'avg' is not allowed: one of pool, stride"),
+    (["+model.net.no_such_arg=1"], r"model.net.no_such_arg = 1 is not allowed: not an argument of FastCNN"),
+    (["+objective.norm=l3"], r"objective.norm = 'l3' is not allowed: not an argument of LabelledObjective"),
     # a key the schema does not have, added with +
     (["+data.n_road=3"], r"data.n_road = 3 is not allowed: unknown key \(did you mean data.n_roads\?\)"),
     (["+trainer.max_step=3"], r"trainer.max_step = 3 is not allowed: unknown key"),
@@ -143,7 +143,7 @@ def test_a_misspelt_experiment_fails_at_composition(make_cfg):
 
 
 def test_the_size_bound_compares_with_the_memory_available(make_cfg, monkeypatch):
-    import hybrid_sysid.config.validation as config
+    import hybrid_sysid.config.memory as config
 
     cfg = make_cfg("data=tiny")  # 6 roads * 8 masses * 400 steps
     need = 6 * 8 * 400 * 4 * 8 + 2 * 6 * 400 * 8  # the channels at 8 bytes, the road profiles twice

@@ -132,7 +132,9 @@ def test_the_rich_bar_without_rich_is_one_line_naming_the_extra(monkeypatch):
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "rich" else real(name, *a))
-    with pytest.raises(ConfigError, match=r'^callbacks.rich_progress_bar needs the rich package, .*"\.\[rich\]"'):
+    with pytest.raises(
+        ConfigError, match=r'^callbacks.rich_progress_bar is not allowed: it needs the rich package, .*"\.\[rich\]"'
+    ):
         validate(composed("data=tiny", "callbacks=rich_progress_bar"))
 
 
@@ -184,6 +186,7 @@ def test_a_run_saved_before_these_groups_still_resumes(tmp_path):
     import yaml
     from omegaconf import OmegaConf
 
+    from hybrid_sysid.runs.resume import check_resume
     from hybrid_sysid.runs.rundir import RunDir
 
     cfg = composed("data=tiny", "trainer=debug")
@@ -193,6 +196,6 @@ def test_a_run_saved_before_these_groups_still_resumes(tmp_path):
     (tmp_path / ".hydra").mkdir()
     (tmp_path / ".hydra" / "config.yaml").write_text(yaml.safe_dump(old))
     for extra in ([], ["paths.root=/elsewhere", "trainer.profiler=simple"]):
-        RunDir(tmp_path).check_resume(composed("data=tiny", "trainer=debug", *extra))
+        check_resume(RunDir(tmp_path), composed("data=tiny", "trainer=debug", *extra))
     with pytest.raises(ConfigError, match=r"is not allowed: .* \(callbacks\.early_stopping\._target_, "):  # stops
-        RunDir(tmp_path).check_resume(composed("data=tiny", "trainer=debug", "callbacks=early_stopping"))
+        check_resume(RunDir(tmp_path), composed("data=tiny", "trainer=debug", "callbacks=early_stopping"))

@@ -184,14 +184,14 @@ def test_concurrent_jobs_generate_a_dataset_once(tmp_path):
 
 
 BAD = [
-    (dict(road_classes=("A", "Z")), r"road.classes = \['A', 'Z'\] is not allowed: each class must be one of A, B"),
-    (dict(dt=0.0), r"data.dt = 0.0 is not allowed: must be > 0"),
-    (dict(dt=0.5), r"data.dt = 0.5 is not allowed: the semi-implicit Euler scheme is unstable above 0.03"),
-    (dict(speed=-3.0), r"data.speed = -3.0 is not allowed: must be > 0"),
-    (dict(m3_min=120, m3_max=80), r"data.m3_max = 80 is not allowed: empty mass range"),
-    (dict(m3_min=-5), r"data.m3_min = -5 is not allowed: must be > 0"),
-    (dict(n_roads=1), r"data.n_roads = 1 is not allowed: need at least 2 roads"),
-    (dict(measurement="exact"), r"data.measurement = 'exact' is not allowed: one of paper, consistent"),
+    (dict(road_classes=("A", "Z")), r"road_classes = \['A', 'Z'\] is not allowed: each class must be one of A, B"),
+    (dict(dt=0.0), r"dt = 0.0 is not allowed: must be > 0"),
+    (dict(dt=0.5), r"dt = 0.5 is not allowed: the semi-implicit Euler scheme is unstable above 0.03"),
+    (dict(speed=-3.0), r"speed = -3.0 is not allowed: must be > 0"),
+    (dict(m3_min=120, m3_max=80), r"m3_max = 80 is not allowed: empty mass range"),
+    (dict(m3_min=-5), r"m3_min = -5 is not allowed: must be > 0"),
+    (dict(n_roads=1), r"n_roads = 1 is not allowed: need at least 2 roads"),
+    (dict(measurement="exact"), r"measurement = 'exact' is not allowed: one of paper, consistent"),
 ]
 
 
@@ -205,11 +205,11 @@ def test_bad_values_fail_before_anything_is_written(tmp_path, change, match):
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(window=301), r"data.window = 301 is not allowed: must lie in \[1, data.n_steps = 300\]"),
-        (dict(train_fraction=1.0), r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
-        (dict(train_fraction=0.2), r"data.n_roads = 5 is too few for data.train_fraction = 0.2"),
-        (dict(train_std=-0.01), r"noise std -0.01 is not allowed"),
-        (dict(batch_size=0), r"model.batch_size = 0 is not allowed"),
+        (dict(window=301), r"window = 301 is not allowed: must lie in \[1, n_steps = 300\]"),
+        (dict(train_fraction=1.0), r"train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
+        (dict(train_fraction=0.2), r"n_roads = 5 is not allowed: too few for train_fraction = 0.2"),
+        (dict(train_std=-0.01), r"train_std = -0.01 is not allowed"),
+        (dict(batch_size=0), r"batch_size = 0 is not allowed"),
     ],
 )
 def test_bad_datamodule_values_fail_before_anything_is_written(tmp_path, kwargs, match):
@@ -224,7 +224,7 @@ def test_continuous_recordings_refuse_a_dt_that_aliases_the_road(speed):
     continuous recording needs 1 / (2 dt) >= 3 v."""
     limit = 1 / (6 * speed)
     DatasetSpec(measurement="continuous", speed=speed, dt=limit * 0.99, n_steps=10).validate()
-    with pytest.raises(ValueError, match=rf"data.dt = .* is not allowed: .*up to {3 * speed:.3g} Hz"):
+    with pytest.raises(ValueError, match=rf"^dt = .* is not allowed: .*up to {3 * speed:.3g} Hz"):
         DatasetSpec(measurement="continuous", speed=speed, dt=limit * 1.01, n_steps=10).validate()
     DatasetSpec(measurement="consistent", speed=speed, dt=min(limit * 1.01, 0.03), n_steps=10).validate()
 

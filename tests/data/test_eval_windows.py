@@ -126,7 +126,7 @@ def test_limit_keeps_the_first_recordings_windows(dm):
 def test_bad_k_is_named(dm, k):
     with pytest.raises(
         ValueError,
-        match=r"evaluation.windows = .* is not allowed: a non-empty list of integers K "
+        match=r"^windows = .* is not allowed: a non-empty list of integers K "
         r"in \[1, data.n_steps - data.window \+ 1 = 301\]",
     ):
         dm.eval_batch("test", 0.0, windows=k)

@@ -192,5 +192,5 @@ def test_validation_windows_carry_the_training_noise():
 
 
 def test_bad_integration_is_refused():
-    with pytest.raises(ValueError, match=r"data.integration = 'x' is not allowed: one of t0, window"):
+    with pytest.raises(ValueError, match=r"^integration = 'x' is not allowed: one of t0, window"):
         QuarterCarDataModule(SPEC, window=300, integration="x")

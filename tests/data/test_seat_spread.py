@@ -65,5 +65,5 @@ def test_spread_is_part_of_the_cache_key_and_the_stored_arrays(tmp_path):
 
 @pytest.mark.parametrize("value", [-0.1, 1.0, 1.5])
 def test_bad_spread_is_named(value):
-    with pytest.raises(ValueError, match=rf"data.seat_spread = {value} is not allowed: must lie in \[0, 1\)"):
+    with pytest.raises(ValueError, match=rf"^seat_spread = {value} is not allowed: must lie in \[0, 1\)"):
         DatasetSpec(seat_spread=value).validate()

@@ -18,7 +18,7 @@ GOOD = {"model.optim.lr": "tag(log, interval(0.002, 0.05))", "model.net.channels
 @pytest.mark.parametrize(
     "params, n_trials, match",
     [
-        (GOOD, 0, r"hydra.sweeper.n_trials = 0 is not allowed: an integer >= 1"),
+        (GOOD, 0, r"hydra.sweeper.n_trials = 0 is not allowed: must be an integer >= 1"),
         ({"model.optim.lr": "tag(log, interval(-1, 0.05))"}, 3, r"a log interval needs bounds > 0"),
         ({"model.optim.lr": "interval(0.05, 0.01)"}, 3, r"interval\(a, b\) needs a < b"),
         ({"model.optim.lr": "choice(a, b)"}, 3, r"'a' is not of the type of model.optim.lr \(float"),
@@ -53,7 +53,7 @@ def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
     proc = subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
     assert (
         proc.returncode == 2
-        and proc.stderr.strip() == "error: hydra.sweeper.n_trials = 0 is not allowed: an integer >= 1"
+        and proc.stderr.strip() == "error: hydra.sweeper.n_trials = 0 is not allowed: must be an integer >= 1"
     ), proc.stderr[-2000:]
     assert not sweep.exists()
 

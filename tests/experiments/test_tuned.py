@@ -57,9 +57,12 @@ def test_defaults_outside_the_space_are_one_named_error(make_cfg):
     space = search_space(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
     cfg = make_cfg("experiment=tuned")
     assert defaults_in(cfg, space)["model.net.channels"] == cfg.model.net.channels
-    with pytest.raises(ConfigError, match=r"model.net.channels = 64 is not allowed with experiment=tuned"):
+    with pytest.raises(
+        ConfigError,
+        match=r"model.net.channels = 64 is not allowed: a value inside the search's space with experiment=tuned",
+    ):
         defaults_in(make_cfg("experiment=tuned", "model.net.channels=64"), space)
-    with pytest.raises(ConfigError, match=r"tuned.n_trials = 0 is not allowed: must be >= 1"):
+    with pytest.raises(ConfigError, match=r"tuned.n_trials = 0 is not allowed: must be an integer >= 1"):
         run_tuned(make_cfg(*TINY, "tuned.n_trials=0"), "unused")
 
 

@@ -14,7 +14,8 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
-from hybrid_sysid.inference.estimator import EstimateWarning, Estimator, InputError
+from hybrid_sysid.inference.estimator import Estimator
+from hybrid_sysid.inference.inputs import EstimateWarning, InputError
 from hybrid_sysid.model.networks import FastCNN
 from hybrid_sysid.physics import road_profiles, simulate
 
@@ -158,7 +159,11 @@ def test_a_baseline_run_estimates_the_simulators_truth(baseline_runs):
             assert table[["p1", "p2"]].to_numpy() == pytest.approx(p, rel=1e-9), name
             assert table.m3_from_p1.to_numpy() == pytest.approx(C3 / p[:, 0], rel=1e-9)
             assert (table.windows == windows).all() and (table.flag == "").all() and lines == [], (name, lines)
-        with pytest.raises(InputError, match=r"recording 0: the least-squares fit of the run's baseline is not"):
+        with pytest.raises(
+            InputError,
+            match=r"recording 0 is not allowed: accelerations of a car on a road: the least-squares fit of the run's "
+            r"baseline",
+        ):
             est.predict(np.zeros(400), np.zeros(400), est.dt)
 
 

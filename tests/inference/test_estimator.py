@@ -11,7 +11,8 @@ import pytest
 from omegaconf import OmegaConf
 from scipy.optimize import curve_fit
 
-from hybrid_sysid.inference.estimator import InputError, resample_to
+from hybrid_sysid.inference.estimator import resample_to
+from hybrid_sysid.inference.inputs import InputError
 from hybrid_sysid.model.metrics import relative_deviation
 
 from helpers.estimator_run import C3, K3, recordings  # the trained run's fixtures, tiny_run and est, come with it
@@ -48,7 +49,9 @@ def test_k_windows_evenly_spaced_mean_and_std(est):
     assert got.m3_from_p1 == pytest.approx(C3 / got.p1) and got.m3_from_p2 == pytest.approx(K3 / got.p2)
     assert got.steps == w + 60 and got.windows == 3
     assert est.predict(seat[0], body[0], est.dt, windows=61).windows.item() == 61  # every start, once
-    with pytest.raises(ValueError, match=r"windows = 62 is not allowed for recording 0: its 260 steps offer 61"):
+    with pytest.raises(
+        ValueError, match=r"windows = 62 is not allowed: 1 to 61 for recording 0: its 260 steps offer 61"
+    ):
         est.predict(seat[0], body[0], est.dt, windows=62)
 
 
@@ -115,44 +118,57 @@ def test_resample_keeps_a_sine(dt_from, n, expected):
 
 def test_bad_input_raises_value_error_naming_it(est):
     seat, body, _ = recordings(1, 300, est.dt)
-    with pytest.raises(ValueError, match=r"recording 0 has 150 steps; allowed: at least the run's data.window = 200"):
+    with pytest.raises(
+        ValueError, match=r"recording 0 = 150 steps is not allowed: at least the run's data.window = 200"
+    ):
         est.predict(seat[0, :150], body[0, :150], est.dt)
     bad = seat[0].copy()
     bad[17] = np.nan
-    with pytest.raises(ValueError, match=r"seat_acc of recording 0 holds nan at step 17: every value must be finite"):
+    with pytest.raises(ValueError, match=r"seat_acc of recording 0 at step 17 = nan is not allowed: finite values"):
         est.predict(bad, body[0], est.dt)
-    with pytest.raises(ValueError, match=r"dt = 0.004 s differs from the run's data.dt = 0.005 s.*resample=true"):
+    with pytest.raises(ValueError, match=r"dt = 0.004 is not allowed: the run's data.dt = 0.005 s .*resample=true"):
         est.predict(seat[0], body[0], 0.004)
-    with pytest.raises(ValueError, match=r"dt = 1e-08 s cannot be resampled to the run's data.dt = 0.005 s"):
+    with pytest.raises(
+        ValueError, match=r"dt = 1e-08 is not allowed: a step that resamples to the run's data.dt = 0.005 s"
+    ):
         est.predict(seat[0], body[0], 1e-8, resample=True)
     with pytest.raises(ValueError, match=r"dt = -1 is not allowed: a finite sampling interval > 0"):
         est.predict(seat[0], body[0], -1)
     with pytest.raises(ValueError, match=r"windows = 0 is not allowed: an integer >= 1"):
         est.predict(seat[0], body[0], est.dt, windows=0)
-    with pytest.raises(ValueError, match=r"recording 0: seat_acc has shape \(300,\) and body_acc \(299,\)"):
+    with pytest.raises(
+        ValueError, match=r"recording 0 = shapes \(300,\) and \(299,\) is not allowed: two 1-D arrays of one length"
+    ):
         est.predict(seat[0], body[0, :299], est.dt)
-    with pytest.raises(ValueError, match=r"seat_acc has shape \(1, 1, 300\); allowed: 1-D"):
+    with pytest.raises(ValueError, match=r"seat_acc = shape \(1, 1, 300\) is not allowed: 1-D"):
         est.predict(seat[None], body[None], est.dt)
 
 
 def test_run_without_network_raises_one_line(tiny_run, tmp_path):
     from hybrid_sysid import load_estimator
 
-    with pytest.raises(InputError, match=r"has no .hydra/config.yaml; allowed: a run directory"):
+    with pytest.raises(
+        InputError,
+        match=r"run = .* is not allowed: it has no .hydra/config.yaml \(a run directory written by hybrid-sysid\)",
+    ):
         load_estimator(tmp_path)
     (tmp_path / ".hydra").mkdir()
     shutil.copy(tiny_run / ".hydra" / "config.yaml", tmp_path / ".hydra")
-    with pytest.raises(InputError, match=r"has no checkpoint .*best.ckpt or .*last.ckpt"):
+    with pytest.raises(
+        InputError,
+        match=r"run = .* is not allowed: a run that trained a network, with checkpoints/best.ckpt or last.ckpt",
+    ):
         load_estimator(tmp_path)
     (tmp_path / "checkpoints").mkdir()
     (tmp_path / "checkpoints" / "best.ckpt").write_text("not a checkpoint")
-    with pytest.raises(InputError, match=r"checkpoint .*best.ckpt cannot be read"):
+    with pytest.raises(InputError, match=r"its checkpoints/best.ckpt cannot be read"):
         load_estimator(tmp_path)
     cfg = OmegaConf.load(tiny_run / ".hydra" / "config.yaml")
     cfg.model.net.channels = 16
     OmegaConf.save(cfg, tmp_path / ".hydra" / "config.yaml")
-    with pytest.raises(InputError, match=r"checkpoint .*last.ckpt does not fit the run's model.net \(hybrid_sysid"):
-        load_estimator(tmp_path, checkpoint=tiny_run / "checkpoints" / "last.ckpt")
+    shutil.copy(tiny_run / "checkpoints" / "last.ckpt", tmp_path / "checkpoints")
+    with pytest.raises(InputError, match=r"a run whose checkpoints/last.ckpt fits its model.net \(hybrid_sysid"):
+        load_estimator(tmp_path, checkpoint="last")
 
 
 def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
@@ -190,11 +206,13 @@ def test_importing_physics_or_the_app_does_not_load_torch(fresh_imports):
 def test_bool_and_complex_arrays_are_refused(est):
     """As float64 a bool array would read as 0 and 1 and a complex one lose its imaginary part."""
     seat, body, _ = recordings(2, 300, est.dt)
-    with pytest.raises(InputError, match=r"^seat_acc has dtype bool; allowed: real numbers in m/s\^2 \(a float or "):
+    with pytest.raises(
+        InputError, match=r"^seat_acc = dtype bool is not allowed: real numbers in m/s\^2 \(a float or "
+    ):
         est.predict(seat[0] > 0, body[0], est.dt)
-    with pytest.raises(InputError, match=r"^body_acc has dtype complex128; allowed: .*, not bool or complex$"):
+    with pytest.raises(InputError, match=r"^body_acc = dtype complex128 is not allowed: .*, not bool or complex\)$"):
         est.predict(seat, body + 0.5j, est.dt)
-    with pytest.raises(InputError, match=r"^seat_acc\[1\] has dtype complex128; allowed: real numbers"):
+    with pytest.raises(InputError, match=r"^seat_acc\[1\] = dtype complex128 is not allowed: real numbers"):
         est.predict([seat[0], seat[1].astype(complex)], list(body), est.dt)
     ints = np.round(seat * 1000).astype(np.int64)  # integer arrays are numbers (mm/s^2 * 1000 here)
     got, want = est.predict(ints, body, est.dt), est.predict(ints.astype(np.float64), body, est.dt)
@@ -206,11 +224,18 @@ def test_values_beyond_float32_are_refused(est):
     seat, body, _ = recordings(2, 300, est.dt)
     huge = seat.copy()
     huge[0, 5] = 1e300
-    with pytest.raises(InputError, match=r"^seat_acc of recording 0 holds 1e\+300 at step 5: beyond float32's range"):
+    with pytest.raises(
+        InputError,
+        match=r"^seat_acc of recording 0 at step 5 = 1e\+300 is not allowed: magnitudes up to 3.40282e\+38, "
+        r"float32's range",
+    ):
         est.predict(huge, body, est.dt)
     edge = body.copy()
     edge[1, 9] = -float(np.finfo(np.float32).max) * (1 + 1e-6)
-    with pytest.raises(InputError, match=r"^body_acc of recording 1 holds -3.4028\de\+38 at step 9: .*up to 3.40282e"):
+    with pytest.raises(
+        InputError,
+        match=r"^body_acc of recording 1 at step 9 = -3.4028\d*e\+38 is not allowed: magnitudes up to 3.40282e",
+    ):
         est.predict(seat, edge, est.dt)
 
 
@@ -230,8 +255,8 @@ def test_an_estimate_that_is_not_finite_is_refused(est, monkeypatch):
     body[1, 150] = 1e31  # in every window of recording 1
     with pytest.raises(
         InputError,
-        match=r"^recording 1: the network's estimate is not finite \(p1 = nan, p2 = nan\): its values, up to "
-        r"1e\+31 m/s\^2 in body_acc, overflow the network's float32 arithmetic",
+        match=r"^recording 1 is not allowed: accelerations of the magnitude the run was trained on \(its values, up to "
+        r"1e\+31 m/s\^2 in body_acc, overflow the network's float32 arithmetic: the estimate is p1 = nan, p2 = nan\)",
     ):
         est.predict(seat, body, est.dt)
 
@@ -242,7 +267,7 @@ def test_windows_must_fit_in_the_memory_available(est, monkeypatch):
     refusal comes before anything that size is allocated."""
     import tracemalloc
 
-    import hybrid_sysid.inference.estimator as estimator
+    import hybrid_sysid.inference.memory as estimator
 
     seat, body, _ = recordings(2, 5300, est.dt)
     available = [800_000]
@@ -252,8 +277,8 @@ def test_windows_must_fit_in_the_memory_available(est, monkeypatch):
     try:
         with pytest.raises(
             InputError,
-            match=r"^windows = 101 is not allowed for recording 0 \(400 steps\): 101 windows of 2 x 200 steps need "
-            r"0.000753 GiB of memory .* and 0.000745 GiB is available; allowed: 1 to 100$",
+            match=r"^windows = 101 is not allowed: 1 to 100 for recording 0 \(400 steps\): 101 windows of 2 x 200 "
+            r"steps need 0.000753 GiB of memory .* and 0.000745 GiB is available$",
         ):
             est.predict(seat[0, :400], body[0, :400], est.dt, windows=101)
         assert tracemalloc.get_traced_memory()[1] < 200_000  # the peak: far below the 808000 bytes refused
@@ -261,13 +286,14 @@ def test_windows_must_fit_in_the_memory_available(est, monkeypatch):
         tracemalloc.stop()
     two = ([seat[0, :400], seat[1, :500]], [body[0, :400], body[1, :500]])
     with pytest.raises(
-        InputError, match=r"^windows = 51 is not allowed for 2 recordings \(the longest, 'b', 500 steps\): 102 windows"
+        InputError,
+        match=r"^windows = 51 is not allowed: .* for 2 recordings \(the longest, 'b', 500 steps\): 102 windows",
     ):
         est.predict(*two, est.dt, windows=51, names=["a", "b"])
     assert (est.predict(*two, est.dt, windows=50).windows == 50).all()
     available[0] = 5000 * 6400 + 4096 * 1600
     assert est.predict(seat[0], body[0], est.dt, windows=5000).windows.item() == 5000
-    with pytest.raises(InputError, match=r"windows = 5001 is not allowed .*; allowed: 1 to 5000$"):
+    with pytest.raises(InputError, match=r"windows = 5001 is not allowed: 1 to 5000 for "):
         est.predict(seat[0], body[0], est.dt, windows=5001)
     available[0] = None  # unknown: no check
     assert est.predict(seat[0], body[0], est.dt, windows=5001).windows.item() == 5001

@@ -109,11 +109,11 @@ def test_eiv_weighting_removes_the_bias_of_noise_in_the_regressors():
 
 
 def test_bad_filter_options_are_refused():
-    with pytest.raises(ValueError, match=r"objective.filter.taps = 150 is not allowed: must be an odd integer"):
+    with pytest.raises(ValueError, match=r"^filter.taps = 150 is not allowed: must be an odd integer"):
         HybridObjective(filter={**BAND, "taps": 150}, dt=SPEC.dt)
-    with pytest.raises(ValueError, match=r"objective.filter.width is not allowed"):
+    with pytest.raises(ValueError, match=r"^filter.width = 1 is not allowed: not a key of a filter"):
         HybridObjective(filter={**BAND, "width": 1}, dt=SPEC.dt)
-    with pytest.raises(ValueError, match=r"objective.weighting = 'eiv' is not allowed without objective.filter"):
+    with pytest.raises(ValueError, match=r"^weighting = 'eiv' is not allowed: none without a filter"):
         HybridObjective(weighting="eiv")
     with pytest.raises(KeyError, match="no filtered signals"):
         HybridObjective(filter=BAND, dt=SPEC.dt)(torch.ones(1, 2), {"signals": torch.ones(1, 2, 500)})

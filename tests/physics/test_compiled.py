@@ -42,9 +42,9 @@ def test_kernel_rejects_unusable_output_arrays_and_measurements():
     roads = road_profiles(["A"], 40, 0.005, 15.0, rng=3)
     good = [np.empty((2, 40), np.float32) for _ in range(4)]
     for bad in (np.empty((2, 40), np.float64), np.empty((2, 39), np.float32), np.empty((2, 80), np.float32)[:, ::2]):
-        with pytest.raises(ValueError, match="out must be four C-contiguous float32 or float64 arrays"):
+        with pytest.raises(ValueError, match="out = .* is not allowed: four C-contiguous float32 or float64 arrays"):
             simulate_recordings(roads, [0, 0], [60.0, 90.0], 0.005, out=[*good[:3], bad])
-    with pytest.raises(ValueError, match="measurement = 'eq12' is unknown; allowed: paper, consistent"):
+    with pytest.raises(ValueError, match="measurement = 'eq12' is not allowed: one of paper, consistent"):
         simulate_recordings(roads, [0, 0], [60.0, 90.0], 0.005, measurement="eq12")
 
 

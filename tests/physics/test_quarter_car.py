@@ -137,9 +137,9 @@ def test_stable_dt_limit_separates_bounded_from_growing():
 
 
 def test_bad_input_is_named():
-    with pytest.raises(ValueError, match="measurement = 'foo' is unknown; allowed: paper, consistent"):
+    with pytest.raises(ValueError, match="measurement = 'foo' is not allowed: one of paper, consistent"):
         simulate(np.zeros(10), 100.0, 0.01, measurement="foo")
-    with pytest.raises(ValueError, match="dt = -0.1 must be > 0"):
+    with pytest.raises(ValueError, match="dt = -0.1 is not allowed: must be > 0"):
         simulate(np.zeros(10), 100.0, -0.1)
-    with pytest.raises(ValueError, match="m3 must be > 0"):
+    with pytest.raises(ValueError, match="m3 = 0.0 is not allowed: masses > 0"):
         simulate(np.zeros(10), 0.0, 0.01)

@@ -7,8 +7,10 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.report.collect import collect
+from hybrid_sysid.report.latex import to_latex
+from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.tables import compare_marks, summary_table, to_latex, to_markdown
+from hybrid_sysid.report.tables import compare_marks, summary_table
 
 from helpers.evaluation_fakes import known_results, make_run, parse_markdown, plain
 
@@ -149,7 +151,7 @@ def test_groups_are_rows_differing_only_in_the_compared_key(tmp_path):
         ("labelled", "E"): "worse",
     }
     assert "`road`" in to_markdown(table, compare="road")
-    with pytest.raises(ValueError, match="compare='seed' is not a row key"):
+    with pytest.raises(ValueError, match="compare = 'seed' is not allowed: a row key"):
         compare_marks(table, compare="seed")
 
 
@@ -229,7 +231,7 @@ def test_seeds_that_agree_have_the_value_as_their_interval():
     infinite t and warn; the interval of a constant is the constant."""
     import warnings
 
-    from hybrid_sysid.report.tables import t_interval
+    from hybrid_sysid.report.stats import t_interval
 
     with warnings.catch_warnings():
         warnings.simplefilter("error")

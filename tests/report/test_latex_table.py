@@ -11,7 +11,9 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.report.collect import load_runs
-from hybrid_sysid.report.tables import summary_table, to_latex, to_markdown
+from hybrid_sysid.report.latex import to_latex
+from hybrid_sysid.report.markdown import to_markdown
+from hybrid_sysid.report.tables import summary_table
 
 from helpers.evaluation_fakes import interval, known_results, make_run, parse_markdown, plain
 

@@ -185,12 +185,12 @@ def test_cli_results_page_places_the_notes_after_the_header(tmp_path, capsys):
     page.unlink()
     capsys.readouterr()
     assert main([str(paper), f"results={page}", f"notes={missing}"]) == 2
-    assert f"notes = {missing}: the file does not exist" in capsys.readouterr().err
+    assert f"notes = {missing} is not allowed: a markdown file that exists" in capsys.readouterr().err
     assert not page.exists()  # nothing written
 
 
 def test_callback_writes_reproduction_when_asked(tmp_path, capsys):
-    from hybrid_sysid.report.sweep_callback import SweepSummary
+    from hybrid_sysid.cli.sweep import SweepSummary
 
     sweep = _make(tmp_path / "sw")
     config = OmegaConf.create({"hydra": {"sweep": {"dir": str(sweep)}}})

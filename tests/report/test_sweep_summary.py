@@ -9,8 +9,9 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.report.collect import collect, find_runs
+from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.tables import summary_table, to_markdown
+from hybrid_sysid.report.tables import summary_table
 
 from helpers.evaluation_fakes import (
     FAILED_ERROR,
@@ -143,15 +144,15 @@ def test_summary_md_lists_failed_jobs_and_files_are_written_atomically(sweep):
     assert md.startswith("# ")
     assert to_markdown(table) in md
     assert "- `4` (objective=hybrid, seed=2): failed: RuntimeError: loss is nan at step 120 while training" in md
-    assert "- `5` (objective=labelled, seed=2): unreadable: JSONDecodeError" in md
+    assert "- `5` (objective=labelled, seed=2): unreadable: metrics.json is damaged: JSONDecodeError" in md
     assert not list(sweep.glob(".*.tmp"))
     assert len(pd.read_csv(sweep / "summary.csv")) == len(df)
 
 
 def test_bad_metric_and_empty_paths_raise_valueerror(sweep, tmp_path):
-    with pytest.raises(ValueError, match="metric='rmse' is not one of"):
+    with pytest.raises(ValueError, match="metric = 'rmse' is not allowed: one of"):
         summary_table(collect(sweep), metric="rmse")
-    with pytest.raises(ValueError, match="hold no run"):
+    with pytest.raises(ValueError, match="is not allowed: directories with runs"):
         write_summary(tmp_path)
 
 

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 from matplotlib.container import BarContainer
 
+from hybrid_sysid.experiments.transfer_report import transfer_figure
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.sweep_figures import transfer_figure
 from hybrid_sysid.report.tables import compare_marks, summary_table
 
 from helpers.evaluation_fakes import PARAMS, known_results, make_run

@@ -11,7 +11,8 @@ import pytest
 import torch
 
 from hybrid_sysid.config import ConfigError
-from hybrid_sysid.runs.records import CompletedRecordError, previous_record, run_record, write_record
+from hybrid_sysid.runs.records import CompletedRecordError, run_record
+from hybrid_sysid.runs.resume import check_resume
 from hybrid_sysid.runs.rundir import RunDir
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=20", "trainer.eval_every_n_steps=10"]
@@ -21,33 +22,33 @@ TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=20", "trainer.eval_ever
 
 
 def test_a_completed_record_is_never_replaced(tmp_path):
-    write_record(tmp_path, run_record("completed", ["seed=0"], 0))
+    RunDir(tmp_path).write_record(run_record("completed", ["seed=0"], 0))
     before = (tmp_path / "metrics.json").read_bytes()
     for status in ("failed", "interrupted", "completed"):
         with pytest.raises(CompletedRecordError):
-            write_record(tmp_path, run_record(status, ["seed=1"], 1))
+            RunDir(tmp_path).write_record(run_record(status, ["seed=1"], 1))
     assert (tmp_path / "metrics.json").read_bytes() == before
 
 
 def test_a_failed_or_interrupted_record_is_replaced(tmp_path):
-    write_record(tmp_path, run_record("interrupted", ["seed=0"], 0, error="interrupted by SIGTERM"))
-    write_record(tmp_path, run_record("completed", ["seed=0"], 0))
+    RunDir(tmp_path).write_record(run_record("interrupted", ["seed=0"], 0, error="interrupted by SIGTERM"))
+    RunDir(tmp_path).write_record(run_record("completed", ["seed=0"], 0))
     assert json.loads((tmp_path / "metrics.json").read_text())["status"] == "completed"
 
 
 def test_a_truncated_record_is_no_completed_run(tmp_path):
-    write_record(tmp_path, run_record("completed", ["seed=0"], 0))
+    RunDir(tmp_path).write_record(run_record("completed", ["seed=0"], 0))
     text = (tmp_path / "metrics.json").read_text()
     (tmp_path / "metrics.json").write_text(text[: len(text) // 2])
-    assert previous_record(tmp_path, ["seed=0"]) is None  # the job runs again
-    write_record(tmp_path, run_record("completed", ["seed=0"], 0))  # and may write its record
+    assert RunDir(tmp_path).previous_record(["seed=0"]) is None  # the job runs again
+    RunDir(tmp_path).write_record(run_record("completed", ["seed=0"], 0))  # and may write its record
 
 
 def test_a_completed_run_of_other_overrides_is_refused(tmp_path):
-    write_record(tmp_path, run_record("completed", ["seed=0"], 0))
-    assert previous_record(tmp_path, ["seed=0", "resume=x"])["status"] == "completed"
+    RunDir(tmp_path).write_record(run_record("completed", ["seed=0"], 0))
+    assert RunDir(tmp_path).previous_record(["seed=0", "resume=x"])["status"] == "completed"
     with pytest.raises(ValueError, match="holds a completed run of other overrides"):
-        previous_record(tmp_path, ["seed=1"])
+        RunDir(tmp_path).previous_record(["seed=1"])
 
 
 # ---- resume= ---------------------------------------------------------------------------------------------------
@@ -65,20 +66,20 @@ def saved_run(tmp_path, make_cfg, *overrides):
 
 def test_resume_refuses_a_directory_without_a_run(tmp_path, make_cfg):
     with pytest.raises(ConfigError, match="resume = .* no such directory"):
-        RunDir(tmp_path / "missing").check_resume(make_cfg())
+        check_resume(RunDir(tmp_path / "missing"), make_cfg())
     with pytest.raises(ConfigError, match="holds no run"):
-        RunDir(tmp_path).check_resume(make_cfg())
+        check_resume(RunDir(tmp_path), make_cfg())
     assert not (tmp_path / "missing").exists()
 
 
 def test_resume_refuses_a_run_of_another_config(tmp_path, make_cfg):
     run = saved_run(tmp_path, make_cfg, *TINY, "seed=0")
     with pytest.raises(ConfigError, match=r"another config \(seed = 0 there, 1 here\)"):
-        RunDir(run).check_resume(make_cfg(*TINY, "seed=1"))
+        check_resume(RunDir(run), make_cfg(*TINY, "seed=1"))
     with pytest.raises(ConfigError, match="trainer.max_steps = 20 there, 40 here"):
-        RunDir(run).check_resume(make_cfg(*TINY, "trainer.max_steps=40"))
+        check_resume(RunDir(run), make_cfg(*TINY, "trainer.max_steps=40"))
     with pytest.raises(ConfigError, match="model.net.channels"):
-        RunDir(run).check_resume(make_cfg(*TINY, "model.net.channels=16"))
+        check_resume(RunDir(run), make_cfg(*TINY, "model.net.channels=16"))
 
 
 def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
@@ -86,8 +87,8 @@ def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
     moved = tmp_path / "moved"
     run.rename(moved)
     # where the run and the cache lie and the progress bar cannot change the numbers
-    RunDir(moved).check_resume(
-        make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true")
+    check_resume(
+        RunDir(moved), make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true")
     )
 
 
@@ -101,16 +102,16 @@ def test_resume_accepts_other_curve_levels_and_a_config_saved_before_them(tmp_pa
     saved = OmegaConf.load(path)
     del saved.noise["curve_std"]
     OmegaConf.save(saved, path)
-    RunDir(run).check_resume(make_cfg(*TINY))
-    RunDir(run).check_resume(make_cfg(*TINY, "noise.curve_std=[0.0]"))
+    check_resume(RunDir(run), make_cfg(*TINY))
+    check_resume(RunDir(run), make_cfg(*TINY, "noise.curve_std=[0.0]"))
     with pytest.raises(ConfigError, match="noise.eval_std"):  # the levels of the scores still may not change
-        RunDir(run).check_resume(make_cfg(*TINY, "noise.eval_std=[0.0]"))
+        check_resume(RunDir(run), make_cfg(*TINY, "noise.eval_std=[0.0]"))
 
 
 def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, caplog):
     run = saved_run(tmp_path, make_cfg, *TINY)
     (run / ".hydra" / "config.yaml").write_text("data: {n_roads: [")  # truncated
-    RunDir(run).check_resume(make_cfg(*TINY))
+    check_resume(RunDir(run), make_cfg(*TINY))
     assert "resuming without comparing" in caplog.text
 
 
@@ -123,10 +124,10 @@ def test_resume_reports_a_truncated_config_that_still_parses_as_damaged(tmp_path
     cut = next(i for i, line in enumerate(lines) if line.startswith("trainer:"))
     path.write_text("\n".join(lines[:cut]) + "\n")
     with pytest.raises(ConfigError, match=r"config.yaml is damaged: it lacks \d+ keys \(car\.c2, ") as err:
-        RunDir(run).check_resume(make_cfg(*TINY), ["data=tiny", f"resume={run}"])
+        check_resume(RunDir(run), make_cfg(*TINY), ["data=tiny", f"resume={run}"])
     assert f"`hybrid-sysid data=tiny resume={run} --cfg job > {path}`" in str(err.value)
     with pytest.raises(ConfigError, match=r"another config \(seed = 0 there, 1 here; car"):
-        RunDir(run).check_resume(make_cfg(*TINY, "seed=1"))
+        check_resume(RunDir(run), make_cfg(*TINY, "seed=1"))
 
 
 # ---- a run's files, damaged --------------------------------------------------------------------------------------
@@ -236,7 +237,7 @@ def test_a_sweep_whose_jobs_all_failed_still_gets_its_summary(tmp_path):
 
     for i, lr in enumerate(["-1", "1e6"]):
         (tmp_path / str(i)).mkdir()
-        write_record(tmp_path / str(i), run_record("failed", [f"model.optim.lr={lr}"], 0, error=f"bad lr {lr}"))
+        RunDir(tmp_path / str(i)).write_record(run_record("failed", [f"model.optim.lr={lr}"], 0, error=f"bad lr {lr}"))
     df, _ = write_summary(tmp_path)
     md = (tmp_path / "summary.md").read_text()
     assert "2 runs: 0 completed, 2 failed" in md and "bad lr 1e6" in md
@@ -252,7 +253,9 @@ def test_the_summary_warns_when_rows_mix_thread_counts(tmp_path):
     ]
     for i, threads in enumerate([1, 1, 2]):
         (tmp_path / str(i)).mkdir()
-        write_record(tmp_path / str(i), run_record("completed", [f"seed={i}"], i, results=results, threads=threads))
+        RunDir(tmp_path / str(i)).write_record(
+            run_record("completed", [f"seed={i}"], i, results=results, threads=threads)
+        )
     df, _ = write_summary(tmp_path)
     assert sorted(df.drop_duplicates("run").threads) == [1, 1, 2]
     assert "different torch thread counts (1, 2)" in (tmp_path / "summary.md").read_text()

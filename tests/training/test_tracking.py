@@ -106,14 +106,14 @@ def test_a_logger_without_its_library_is_a_one_line_error(make_cfg, monkeypatch)
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "mlflow" else real(name, *a))
     with pytest.raises(
         ConfigError,
-        match=r"^logger.mlflow needs the mlflow package, which is not installed: "
+        match=r"^logger.mlflow is not allowed: it needs the mlflow package, not installed: "
         r'pip install -e "\.\[loggers\]"$',
     ):
         validate(cfg)
 
 
 def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
-    from hybrid_sysid.cli import job as app
+    from hybrid_sysid.cli import extras as app
 
     monkeypatch.setattr(app, "installed", lambda module: False)
     assert (

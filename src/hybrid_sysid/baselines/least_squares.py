@@ -6,9 +6,9 @@ recording (or each window) gives p by regressing the seat acceleration on (-rel_
 sensor noise the regressors are the re-integrated noisy accelerations (errors in variables), which biases
 the plain fit, and a band-pass applied to all three signals (filters.py) removes most of that noise.
 
-``LeastSquaresFit`` meets the estimators' protocol (``hybrid_sysid.model.base.SplitPredictor``:
-``predict_split``), so the training layer scores it like a network; a run with ``baseline=`` set builds it and
-skips Lightning.
+``LeastSquaresFit`` meets the baselines' protocol (``hybrid_sysid.model.base.Baseline``: ``predict_split``,
+``check_lengths``, ``estimate``), so the training layer scores it like a network and a run directory of it
+estimates recordings; a run with ``baseline=`` set builds it and skips Lightning.
 """
 
 from __future__ import annotations
@@ -17,10 +17,10 @@ import time
 
 import numpy as np
 
-from hybrid_sysid.core.checks import format_value
+from hybrid_sysid.core.checks import bad, check_choice
 from hybrid_sysid.core.options import FILTERS, SPANS, UNKNOWNS
 from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
-from hybrid_sysid.data.spec import check_filter_fits
+from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass, fir_valid
 
@@ -92,6 +92,8 @@ class LeastSquaresFit:
         so p = (C3, K3) / m3 is one parameter (the paper's own premise).
     """
 
+    fit_seconds = 0.0  # wall time spent in predict_split: a baseline's only work (each instance its own)
+
     def __init__(
         self,
         span: str = "window",
@@ -104,20 +106,14 @@ class LeastSquaresFit:
         c3: float | None = None,
         k3: float | None = None,
     ):
-        if span not in SPANS:
-            raise ValueError(f"baseline.span = {format_value(span)} is not allowed: one of {', '.join(SPANS)}")
-        if filter not in FILTERS:
-            raise ValueError(f"baseline.filter = {format_value(filter)} is not allowed: one of {', '.join(FILTERS)}")
-        if unknown not in UNKNOWNS:
-            raise ValueError(f"baseline.unknown = {format_value(unknown)} is not allowed: one of {', '.join(UNKNOWNS)}")
-        for key, value in (("c3", c3), ("k3", k3)):
-            if unknown == "m3" and not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
-                raise ValueError(
-                    f"baseline.{key} = {format_value(value)} is not allowed: must be finite and > 0 "
-                    "with unknown = m3 (the car's constant, ${car." + key + "})"
-                )
+        check_choice("span", span, SPANS)
+        check_choice("filter", filter, FILTERS)
+        check_choice("unknown", unknown, UNKNOWNS)
+        for key, value in (("c3", c3), ("k3", k3)) if unknown == "m3" else ():
+            if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
+                bad(key, value, f"must be finite and > 0 with unknown = m3 (the car's constant, ${{car.{key}}})")
         self.car = (float(c3), float(k3)) if unknown == "m3" else None
-        check_bandpass(low_hz, high_hz, taps, dt, prefix="baseline")  # checked even when unused, so a typo never waits
+        check_bandpass(low_hz, high_hz, taps, dt)  # checked even when unused, so a typo never waits
         self.span, self.filter = span, filter
         self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt) if filter == "bandpass" else None
@@ -128,7 +124,22 @@ class LeastSquaresFit:
         if self.fir is None:
             return
         length, key = (window, "data.window") if self.span == "window" else (n_steps, "data.n_steps")
-        check_filter_fits(self.taps, length, "baseline.taps", key)
+        check_filter_fits(self.taps, length, "taps", key)
+
+    def estimate(self, seat, body, dt: float, measurement: str, window: int, windows: int) -> np.ndarray:
+        """(K, 2) float64 estimates of one recording: per window (span "window": ``windows`` = K evenly spaced
+        windows, their regressors integrated over the whole recording from t0 and cropped, as the data module
+        cuts them) or one fit of the whole recording (span "series": (1, 2)). NaN where the fit is not defined
+        (regressors that vanish or are dependent)."""
+        seat = np.asarray(seat, dtype=np.float64)
+        rel_vel, rel_disp = relative_states(seat, body, dt, measurement)
+        if self.span == "series":
+            self.check_lengths(window, len(seat))
+            rows = [seat[None], rel_vel[None], rel_disp[None]]
+        else:
+            starts = window_starts(len(seat), window, windows)
+            rows = [np.stack([x[s : s + window] for s in starts]) for x in (seat, rel_vel, rel_disp)]
+        return fit_p(*rows, self.fir, self.car)
 
     def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1):
         """Estimates and truth, float64 (n, 2), one row per recording (model.base.SplitPredictor)."""

@@ -6,7 +6,7 @@ conf/hydra/job_logging/quiet.yaml) keeps every message.
   (``quiet_libraries``). Its INFO messages (seed, devices, why fit stopped) go to the log file only, and its
   litlogger advert nowhere.
 - In a sweep, what a job logs below WARNING goes to its log file only (its result table among it): the console
-  shows one line per finished job (hybrid_sysid.report.sweep_callback) and the sweep's table; a single run
+  shows one line per finished job (hybrid_sysid.cli.sweep) and the sweep's table; a single run
   also prints its own messages and table.
 """
 

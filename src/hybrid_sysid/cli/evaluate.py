@@ -6,8 +6,8 @@ evaluated on another car, road class, noise level or measurement. Model, objecti
 overriding them is a one-line error (exit 2). Works under ``-m``: every job writes its own record, naming the
 source run, and the sweep summary reads them. The job directory's .hydra/config.yaml is replaced by the config
 that was evaluated, so the directory describes itself. Signals, interruption and failure records: as
-hybrid-sysid (hybrid_sysid.cli.job); the preflight checks the evaluated config and refuses a directory that
-holds a completed run of other overrides before Hydra writes into it.
+hybrid-sysid (hybrid_sysid.cli.job, hybrid_sysid.cli.process); the preflight checks the evaluated config and
+refuses a directory that holds a completed run of other overrides before Hydra writes into it.
 """
 
 from __future__ import annotations
@@ -22,7 +22,9 @@ from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, console_main, draws_figures, run_job
+from hybrid_sysid.cli.job import draws_figures, run_job
+from hybrid_sysid.cli.preflight import Preflight
+from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import Config, validate
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.runs.rundir import RunDir
@@ -53,19 +55,20 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
             continue
         if top not in OVERRIDABLE and key not in LAUNCHER_KEYS:
             raise ConfigError(
-                f"{key} cannot be overridden in an evaluation: the network and how it was trained "
-                f"are the run's; allowed: {', '.join(OVERRIDABLE)} (and their keys)"
+                key,
+                allowed=f"a key of {', '.join(OVERRIDABLE)} in an evaluation (the network and how it was trained "
+                "are the run's)",
             )
         OmegaConf.update(cfg, key, OmegaConf.select(composed, key), merge=False)
     return cfg
 
 
 class EvalPreflight(Preflight):
-    """Preflight (hybrid_sysid.cli.job) that also builds and checks the config to evaluate."""
+    """Preflight (hybrid_sysid.cli.preflight) that also builds and checks the config to evaluate."""
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         if OmegaConf.is_missing(cfg, "run"):
-            raise ConfigError("run is missing: give the trained run's directory, hybrid-sysid-eval run=<run dir>")
+            raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
         evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
         validate(evaluated)
         from hybrid_sysid.training.build import check_weights  # here: a sweep's parent loads no torch
@@ -108,7 +111,7 @@ def hydra_main(composed: DictConfig) -> dict:
 
 
 def main() -> None:
-    """Console script ``hybrid-sysid-eval`` (exit statuses: hybrid_sysid.cli.job)."""
+    """Console script ``hybrid-sysid-eval`` (exit statuses: hybrid_sysid.cli.process)."""
     console_main(hydra_main, sys.argv[1:])
 
 

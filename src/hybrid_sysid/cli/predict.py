@@ -12,7 +12,6 @@ docs/predict.md.
 
 from __future__ import annotations
 
-import math
 import os
 import sys
 import tempfile
@@ -21,57 +20,36 @@ from pathlib import Path
 
 import pandas as pd
 
+from hybrid_sysid.cli.arguments import Key, UsageError, parse
+from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.core.files import write_atomic
-from hybrid_sysid.inference.estimator import EstimateWarning, InputError, load_estimator
+from hybrid_sysid.inference.inputs import EstimateWarning, InputError
+from hybrid_sysid.inference.loading import load_estimator
 from hybrid_sysid.inference.readers import read_input
-from hybrid_sysid.runs.records import RECORD
-from hybrid_sysid.runs.rundir import CONFIG
+from hybrid_sysid.runs import layout
 
 USAGE = (
     "usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [overwrite=true|false] [windows=K] "
     "[resample=true|false] [dt=SECONDS]"
 )
-KEYS = ("run", "input", "output", "overwrite", "windows", "resample", "dt")
+KEYS = {
+    "run": Key(),
+    "input": Key(),
+    "output": Key(),
+    "overwrite": Key("bool", False),
+    "windows": Key("int", 8),
+    "resample": Key("bool", False),
+    "dt": Key("positive", allowed="a sampling interval > 0 in seconds"),
+}
 
 
 def parse_args(argv: list[str]) -> dict:
-    """key=value arguments -> {run, input, output, overwrite, windows, resample, dt}, each checked."""
-    args: dict = {}
-    for arg in argv:
-        key, sep, value = arg.partition("=")
-        if arg.startswith("-"):  # the style of every command: key=value, as Hydra's overrides
-            hint = arg.lstrip("-") if sep else f"{arg.lstrip('-')}=VALUE"
-            raise InputError(f"argument {arg!r}: options are key=value without dashes ({hint}); see --help")
-        if not sep:
-            raise InputError(f"argument {arg!r} is not key=value; allowed keys: {', '.join(KEYS)}")
-        if key not in KEYS:
-            raise InputError(f"unknown key {key!r} in {arg!r}; allowed keys: {', '.join(KEYS)}")
-        if key in args:
-            raise InputError(f"{key} is given twice ({key}={args[key]} and {arg}); give it once")
-        args[key] = value
+    """key=value arguments -> {run, input, output, overwrite, windows, resample, dt}, each checked (the shared
+    parser, hybrid_sysid.cli.arguments)."""
+    args, _ = parse(argv, KEYS)
     for key in ("run", "input"):
         if not args.get(key):
-            raise InputError(f"{key}= is missing; {USAGE}")
-    windows = args.get("windows", "8")
-    try:
-        args["windows"] = int(windows)
-    except ValueError:
-        args["windows"] = 0
-    if args["windows"] < 1:
-        raise InputError(f"windows = {windows!r} is not allowed: an integer >= 1")
-    for key in ("resample", "overwrite"):
-        flag = args.get(key, "false").lower()
-        if flag not in ("true", "false"):
-            raise InputError(f"{key} = {args[key]!r} is not allowed: true or false")
-        args[key] = flag == "true"
-    if "dt" in args:
-        try:
-            dt = float(args["dt"])
-        except ValueError:
-            dt = math.nan
-        if not (math.isfinite(dt) and dt > 0):
-            raise InputError(f"dt = {args['dt']!r} is not allowed: a sampling interval > 0 in seconds")
-        args["dt"] = dt
+            raise UsageError(key, missing=True, allowed=USAGE)
     return args
 
 
@@ -81,32 +59,27 @@ def check_output(args: dict) -> Path | None:
     run's config or record), and no existing file unless overwrite=true."""
     if not args.get("output"):
         return None
-    output, given = Path(args["output"]), args["output"]
+    output = Path(args["output"])
+
+    def refuse(allowed: str):
+        raise UsageError("output", Shown(args["output"]), allowed)
+
     if not output.parent.is_dir():
-        raise InputError(f"output = {given}: its directory {output.parent} does not exist")
+        refuse(f"a file in a directory that exists ({output.parent} does not)")
     if output.is_dir():
-        raise InputError(f"output = {given} is a directory; allowed: a file name for the CSV table")
+        refuse("a file name for the CSV table, not a directory")
     target, source = output.resolve(), Path(args["input"])
     if target == source.resolve() or (output.exists() and source.exists() and os.path.samefile(output, source)):
-        raise InputError(
-            f"output = {given} is the input file (input = {args['input']}); allowed: another file, an output "
-            "never replaces its input"
-        )
-    run_dir = Path(args["run"]).resolve()
-    if target.is_relative_to(run_dir):
-        raise InputError(
-            f"output = {given} lies inside the run directory run = {args['run']}; allowed: a path outside run "
-            "directories, whose files are the run's record"
-        )
+        refuse(f"it is the input file (input = {args['input']}); another file, an output never replaces its input")
+    where = "a path outside run directories, whose files are the run's record"
+    if target.is_relative_to(Path(args["run"]).resolve()):
+        refuse(f"it lies inside the run directory run = {args['run']}; {where}")
     for folder in target.parents:
-        for marker in (CONFIG, RECORD):
+        for marker in (layout.CONFIG, layout.RECORD):
             if (folder / marker).is_file():
-                raise InputError(
-                    f"output = {given} lies inside the run directory {folder} (it holds {marker}); allowed: a "
-                    "path outside run directories, whose files are the run's record"
-                )
+                refuse(f"it lies inside the run directory {folder} (it holds {marker}); {where}")
     if (output.exists() or output.is_symlink()) and not args.get("overwrite"):
-        raise InputError(f"output = {given} exists; allowed: a new file, or overwrite=true to replace it")
+        refuse("it exists; a new file, or overwrite=true to replace it")
     return output
 
 
@@ -149,20 +122,22 @@ def run(args: dict) -> pd.DataFrame:
                 resample=args["resample"],
                 names=recordings.names,
             )
-    except InputError as exc:
-        raise InputError(f"input = {args['input']}: {exc}") from None
+    except InputError as exc:  # the recordings' own problem, in the file named by input=
+        raise InputError(f"input = {args['input']}: {exc.key}", exc.value, exc.allowed, exc.missing) from None
     print(table.to_string(index=False))
     if output is not None:
         write = write_atomic if args.get("overwrite") else write_new
         try:
             write(output, lambda tmp: table.to_csv(tmp, index=False))
         except FileExistsError:
-            raise InputError(
-                f"output = {args['output']} appeared while the recordings were estimated and is left as it is; "
-                "allowed: a new file, or overwrite=true to replace it"
+            raise UsageError(
+                "output",
+                Shown(args["output"]),
+                "it appeared while the recordings were estimated and is left as it is; a new file, or overwrite=true "
+                "to replace it",
             ) from None
         except OSError as exc:
-            raise InputError(f"output = {output} cannot be written ({exc})") from None
+            raise UsageError("output", Shown(str(output)), f"a file that can be written ({exc})") from None
     for line in table.attrs.get("warnings", []):  # last: a refusal or Ctrl-C before this stays one line
         print(f"hybrid-sysid-predict: warning: {line}", file=sys.stderr)
     return table
@@ -197,7 +172,7 @@ def main(argv: list[str] | None = None) -> None:
         return
     try:
         run(parse_args(argv))
-    except InputError as exc:
+    except ConfigError as exc:
         print(f"hybrid-sysid-predict: error: {' '.join(str(exc).split())}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:

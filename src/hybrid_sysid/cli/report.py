@@ -1,9 +1,9 @@
 """``hybrid-sysid-report PATH... [key=value ...]``: rebuild a sweep's table and figures from run records.
 
-The options are key=value, as in the other commands (``hybrid-sysid-report --help`` lists them); the former
-``--key value`` flags are still accepted as aliases. Exit status: 0 if every run completed, 1 if any failed or is
-unreadable (everything is still written), 2 for a bad argument (one line on stderr), a path that does not exist
-or holds no runs, or compare= naming a key that is not swept.
+The options are key=value, as in the other commands (``hybrid-sysid-report --help`` lists them; the parser is
+hybrid_sysid.cli.arguments, which hybrid-sysid-predict shares). Exit status: 0 if every run completed, 1 if any
+failed or is unreadable (everything is still written), 2 for a bad argument (one line on stderr), a path that
+does not exist or holds no runs, or compare= naming a key that is not swept.
 """
 
 from __future__ import annotations
@@ -13,13 +13,17 @@ import sys
 from argparse import Namespace
 from pathlib import Path
 
+import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
+from hybrid_sysid.cli.arguments import Key, UsageError, parse
+from hybrid_sysid.core.checks import Shown
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.report.collect import find_runs, load_runs
+from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.report.results_page import write_results
 from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.tables import METRICS, to_markdown
-from hybrid_sysid.runs.records import RECORD
+from hybrid_sysid.report.tables import METRICS
+from hybrid_sysid.runs.layout import PREDICTIONS, RECORD
 
 PROG = "hybrid-sysid-report"
 HELP = f"""{PROG}: rebuild the comparison table (summary.md, summary.csv) and figures of sweeps or runs from their
@@ -55,78 +59,38 @@ examples:
   {PROG} outputs/multirun/a outputs/multirun/b split=val compare=objective latex=true out=report
   {PROG} outputs/multirun/tuned exclude='*/search/*' results=docs/results.md reproduction=true
 """
-VALUE_KEYS = ("split", "metric", "out", "compare", "exclude", "notes", "results", "merge")
-REPEATABLE = ("exclude", "merge")
-FLAG_KEYS = ("latex", "reproduction", "run_figures")
-KEYS = VALUE_KEYS + FLAG_KEYS
-
-
-class UsageError(ValueError):
-    """A bad argument: one line on stderr, exit status 2."""
-
-
-def _key_values(argv: list[str]) -> list[str]:
-    """The arguments with the former ``--key value``, ``--key=value`` and ``--flag`` aliases as key=value."""
-    out, i = [], 0
-    while i < len(argv):
-        arg = argv[i]
-        if arg.startswith("--"):
-            key, sep, value = arg[2:].partition("=")
-            if key not in KEYS:
-                raise UsageError(f"unknown option {arg!r}; options are key=value: {', '.join(KEYS)} (see --help)")
-            if key in FLAG_KEYS and not sep:
-                value, sep = "true", "="
-            elif not sep:
-                if i + 1 >= len(argv):
-                    raise UsageError(f"{arg} needs a value: {key}=VALUE")
-                i, value = i + 1, argv[i + 1]
-            arg = f"{key}={value}"
-        out.append(arg)
-        i += 1
-    return out
+KEYS = {
+    "split": Key("choice", "test", SPLITS),
+    "metric": Key("choice", "mean_rel_dev", tuple(METRICS)),
+    "out": Key(),
+    "compare": Key(),
+    "exclude": Key("list", repeats=True),
+    "notes": Key(),
+    "results": Key(),
+    "merge": Key("list", repeats=True),
+    "latex": Key("bool", False),
+    "reproduction": Key("bool", False),
+    "run_figures": Key("bool", False),
+}
 
 
 def parse_args(argv) -> Namespace:
     """PATHs and key=value options -> the report's settings, each checked (UsageError)."""
-    args = Namespace(paths=[], split="test", metric="mean_rel_dev", out=None, compare=None, exclude=[], merge=[])
-    args.latex = args.reproduction = args.run_figures = False
-    args.notes = args.results = None
-    given = set()
-    for arg in _key_values(list(argv)):
-        key, sep, value = arg.partition("=")
-        if not sep or key not in KEYS:
-            if sep and key.isidentifier() and not Path(arg).exists():
-                raise UsageError(f"unknown key {key!r} in {arg!r}; allowed keys: {', '.join(KEYS)}")
-            args.paths.append(Path(arg))
-            continue
-        if key in given and key not in REPEATABLE:
-            raise UsageError(f"{key} is given twice; give it once")
-        given.add(key)
-        if key in FLAG_KEYS:
-            if value.lower() not in ("true", "false"):
-                raise UsageError(f"{key} = {value!r} is not allowed: true or false")
-            setattr(args, key, value.lower() == "true")
-        elif key == "exclude":  # repeatable, or a list: exclude=[a,b]
-            items = value[1:-1].split(",") if value.startswith("[") and value.endswith("]") else [value]
-            args.exclude += [item.strip() for item in items if item.strip()]
-        elif key == "merge":  # repeatable, each a group of sweeps: merge=a,b or merge=[a,b]
-            items = value[1:-1] if value.startswith("[") and value.endswith("]") else value
-            group = [Path(item.strip()) for item in items.split(",") if item.strip()]
-            if len(group) < 2:
-                raise UsageError(f"merge = {value!r} names {len(group)} sweep; give two or more: merge=DIR,DIR")
-            args.merge.append(group)
-        elif key == "split" and value not in SPLITS:
-            raise UsageError(f"split = {value!r} is not allowed: one of {', '.join(SPLITS)}")
-        elif key == "metric" and value not in METRICS:
-            raise UsageError(f"metric = {value!r} is not allowed: one of {', '.join(METRICS)}")
-        elif not value:
-            raise UsageError(f"{key}= needs a value")
-        else:
-            setattr(args, key, Path(value) if key in ("out", "notes", "results") else value)
+    values, paths = parse(list(argv), KEYS, positional=True)
+    args = Namespace(**values, paths=[Path(p) for p in paths])
+    args.exclude = [pattern for group in args.exclude for pattern in group]
+    for group in args.merge:
+        if len(group) < 2:
+            raise UsageError("merge", ",".join(group), "two or more sweeps: merge=DIR,DIR")
+    args.merge = [[Path(p) for p in group] for group in args.merge]
+    for key in ("out", "notes", "results"):
+        setattr(args, key, None if getattr(args, key) is None else Path(getattr(args, key)))
     if not args.paths:
-        raise UsageError(f"no PATH given; usage: {PROG} PATH... [key=value ...] (see --help)")
+        raise UsageError(
+            "PATH", missing=True, allowed=f"at least one run or sweep directory: {PROG} PATH... (see --help)"
+        )
     if args.merge and args.results is None:
-        raise UsageError("merge= adds a section to a results page: give results=FILE too")
+        raise UsageError("merge", allowed="with results=FILE (it adds a section to a results page)")
     return args
 
 
@@ -147,11 +111,11 @@ def main(argv=None) -> int:
     # each path must contribute, so a typo is not silently merged away
     for path in [*args.paths, *(p for group in args.merge for p in group)]:
         if not path.exists():
-            return _error(f"path does not exist: {path}")
+            return _error(str(UsageError("PATH", Shown(str(path)), "a run or sweep directory that exists")))
         if not find_runs([path]):
-            return _error(f"no runs ({RECORD}) under {path}")
+            return _error(str(UsageError("PATH", Shown(str(path)), f"a directory with runs ({RECORD}) at or below it")))
     if args.notes is not None and not args.notes.is_file():
-        return _error(f"notes = {args.notes}: the file does not exist")
+        return _error(str(UsageError("notes", Shown(str(args.notes)), "a markdown file that exists")))
     bad = 0
     try:
         if args.results is None or args.out is not None:
@@ -215,7 +179,7 @@ def draw_run_figures(paths, exclude=()) -> int:
     runs = df[df.status == "completed"].drop_duplicates("run").run
     drawn = 0
     for i, name in enumerate(runs, start=1):
-        if (root / name / "predictions.csv").is_file():
+        if (root / name / PREDICTIONS).is_file():
             write_run_figures(root / name)
             drawn += 1
         if i % 10 == 0:

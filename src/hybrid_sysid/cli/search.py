@@ -27,12 +27,14 @@ import math
 from pathlib import Path
 from typing import Any
 
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig
 
-from hybrid_sysid.cli.job import fail, sweep_stopped, task_config
+from hybrid_sysid.cli.job import task_config
+from hybrid_sysid.cli.process import fail, sweep_stopped
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.search import StudySettings, sampler_for, study_settings
+from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")
 STUDY_FILE = "study.db"  # the default storage, in the sweep directory
@@ -53,7 +55,7 @@ def run_study(config: DictConfig, launcher, settings: dict, arguments: list[str]
     storage = s.storage or f"sqlite:///{sweep_dir / STUDY_FILE}"
     study = optuna.create_study(study_name=s.name, storage=storage, direction=s.direction, load_if_exists=True)
     _own(study, sweep_dir if s.storage else None, s)
-    write_atomic(sweep_dir / "multirun.yaml", lambda p: OmegaConf.save(config, p))
+    SweepDir(sweep_dir).write_config(config)
     done = sum(t.state.is_finished() for t in study.get_trials(deepcopy=False))
     if done:
         log.info("search: study %s resumed with %d of %d trials ended", s.name, done, s.n_trials)

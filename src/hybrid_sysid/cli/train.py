@@ -1,5 +1,6 @@
 """``hybrid-sysid``: compose the config, check it, run its task (one run, a transfer chain, a tuned comparison),
-draw the run's figures. The job's signals, interruption and failure records: hybrid_sysid.cli.job.
+draw the run's figures. The job's signals, interruption and failure records: hybrid_sysid.cli.job; exit statuses:
+hybrid_sysid.cli.process.
 
 A job returns its record. Under a hyperparameter search (hybrid_sysid.cli.search, conf/hparams_search) the
 study reads its ``best_score``: the validation figure its model selection used (val/loss for a label-free
@@ -20,17 +21,17 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, console_main, draws_figures, run_job
+from hybrid_sysid.cli.job import draws_figures, run_job
+from hybrid_sysid.cli.preflight import Preflight
+from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import validate
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
-# the option that moved: a baseline is chosen with baseline=, not model=
-MOVED = {"model=ls_": "baseline=ls_"}
 
 
 class TrainPreflight(Preflight):
-    """Preflight (hybrid_sysid.cli.job) that also checks the config's values and its ``resume=`` directory."""
+    """Preflight (hybrid_sysid.cli.preflight) that also checks the config's values and its ``resume=`` directory."""
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
@@ -39,7 +40,9 @@ class TrainPreflight(Preflight):
 
             check_weights(cfg, Path(str(cfg.init_from)), "init_from")
         if cfg.get("resume"):
-            RunDir(str(cfg.resume)).check_resume(cfg, overrides)
+            from hybrid_sysid.runs.resume import check_resume
+
+            check_resume(RunDir(str(cfg.resume)), cfg, overrides)
 
 
 def run_task(
@@ -109,16 +112,7 @@ def _draw_figures(run_dir: Path) -> None:
 
 
 def main() -> None:
-    """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.cli.job)."""
-    for arg in sys.argv[1:]:
-        for old, new in MOVED.items():
-            if arg.startswith(old):
-                print(
-                    f"error: {arg} is not allowed: the baselines are a config group of their own: "
-                    f"{arg.replace(old, new, 1)}",
-                    file=sys.stderr,
-                )
-                sys.exit(2)
+    """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.cli.process)."""
     console_main(hydra_main, sys.argv[1:])
 
 

@@ -10,10 +10,12 @@ are plain values; a nested ``_target_`` (an argument that would build another ob
 from __future__ import annotations
 
 import importlib
+import inspect
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.core.checks import ConfigError, format_value
+from hybrid_sysid.core.checks import ConfigError, bad
+from hybrid_sysid.model.base import Baseline, Network, Objective, lacks
 
 _NETWORKS = ("FastCNN", "PaperCNN")
 _OBJECTIVES = ("LabelledObjective", "HybridObjective", "CombinedObjective")
@@ -28,6 +30,8 @@ KNOWN: dict[str, dict[str, tuple[str, str]]] = {
     "callbacks": {f"lightning.pytorch.callbacks.{n}": ("lightning.pytorch.callbacks", n) for n in _CALLBACKS},
 }
 FAMILIES = ("logger", "callbacks")  # a mapping of names, each to a _target_: logger.<name>, callbacks.<name>
+# what a class at each key must provide (hybrid_sysid.model.base)
+INTERFACES = {"model.net": Network, "objective": Objective, "baseline": Baseline}
 
 
 def _family(key: str) -> str:
@@ -39,47 +43,73 @@ def check_target(target, key: str) -> None:
     """ConfigError unless ``target`` is one of KNOWN for ``key``; imports nothing."""
     allowed = KNOWN[_family(key)]
     if not isinstance(target, str) or target not in allowed:
-        raise ConfigError(
-            f"{key}._target_ = {format_value(target)} is not allowed: one of "
-            f"{', '.join(sorted(allowed))} (a config names only this package's classes)"
+        bad(
+            f"{key}._target_",
+            target,
+            f"one of {', '.join(sorted(allowed))} (a config names only this package's classes)",
         )
 
 
 def known_class(target, key: str) -> type:
-    """The class a ``_target_`` at ``key`` names, imported only when it is one of KNOWN; ConfigError otherwise."""
+    """The class a ``_target_`` at ``key`` names, imported only when it is one of KNOWN, and holding every member
+    of its key's interface (INTERFACES); ConfigError otherwise."""
     check_target(target, key)
     module, name = KNOWN[_family(key)][target]
-    return getattr(importlib.import_module(module), name)
+    cls = getattr(importlib.import_module(module), name)
+    interface = INTERFACES.get(_family(key))
+    missing = lacks(cls, interface) if interface is not None else []
+    if missing:
+        bad(f"{key}._target_", target, f"a class with {', '.join(missing)} ({interface.__name__}, model/base.py)")
+    return cls
 
 
 def arguments(node, key: str) -> tuple[type, dict]:
     """The class and the plain keyword arguments of the node at ``key`` ({_target_, arguments...})."""
     spec = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node or {})
     if not isinstance(spec, dict):
-        raise ConfigError(f"{key} = {format_value(spec)} is not allowed: a mapping with a _target_")
+        bad(key, spec, "a mapping with a _target_")
     target = spec.pop("_target_", None)
     _no_targets_in(spec, key)  # before anything is imported
     cls = known_class(target, key)
     unknown = sorted(k for k in spec if isinstance(k, str) and k.startswith("_"))
     if unknown:
-        raise ConfigError(f"{key}.{unknown[0]} is not allowed: {key} takes its class's own arguments")
+        bad(f"{key}.{unknown[0]}", spec[unknown[0]], f"{key} takes its class's own arguments")
     return cls, spec
 
 
 def build(node, key: str, **extra):
-    """The object the node at ``key`` describes, built by its own constructor (whose checks name their
-    argument); ``extra`` keyword arguments replace the node's."""
+    """The object the node at ``key`` describes, built by its own constructor, whose checks name their argument:
+    a ConfigError places that argument under ``key`` (``model.net`` + ``kernel_size``). An argument the
+    constructor does not take is refused first, with what it takes (a run saved by an older version may name an
+    argument since removed). ``extra`` keyword arguments replace the node's."""
     cls, kwargs = arguments(node, key)
-    return cls(**{**kwargs, **extra})
+    kwargs = {**kwargs, **extra}
+    _check_arguments(cls, kwargs, key)
+    try:
+        return cls(**kwargs)
+    except ConfigError as exc:
+        raise exc.under(key) from None
+
+
+def _check_arguments(cls: type, kwargs: dict, key: str) -> None:
+    """Every keyword a parameter of ``cls``'s constructor (unless it takes ``**kwargs``)."""
+    try:
+        params = inspect.signature(cls).parameters
+    except (TypeError, ValueError):  # a signature Python cannot read: the constructor checks its own
+        return
+    if any(p.kind is p.VAR_KEYWORD for p in params.values()):
+        return
+    takes = [n for n, p in params.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    for name, value in kwargs.items():
+        if name not in takes:
+            bad(f"{key}.{name}", value, f"not an argument of {cls.__name__}, which takes {', '.join(takes)}")
 
 
 def _no_targets_in(value, key: str) -> None:
     if isinstance(value, dict):
         for k, v in value.items():
             if k == "_target_":
-                raise ConfigError(
-                    f"{key}._target_ = {format_value(v)} is not allowed inside an argument: arguments are plain values"
-                )
+                bad(f"{key}._target_", v, "no _target_ inside an argument: arguments are plain values")
             _no_targets_in(v, f"{key}.{k}")
     elif isinstance(value, list):
         for v in value:

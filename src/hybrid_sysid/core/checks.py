@@ -1,7 +1,10 @@
-"""The one-line value checks every layer shares: an error names the key, the value and what is allowed.
+"""The one error a bad value raises, and the checks every layer shares.
 
-``ConfigError`` is a ValueError, so code that builds an object outside a config (a notebook, a test) sees the
-usual exception class, and the command-line entry points print its message on one line.
+``ConfigError`` carries what is wrong as data: the key (the owner's own argument name, e.g. ``kernel_size``), the
+value and what is allowed. The config layer places a key under its config path (``under``: ``model.net`` +
+``kernel_size``), so the owner never spells a config path and nothing parses a message. Its text is one line,
+``key = value is not allowed: what is allowed`` (``key is missing: ...`` when it has none), which the
+command-line entry points print as it is. It is a ValueError, so a notebook sees the usual class.
 """
 
 from __future__ import annotations
@@ -9,38 +12,104 @@ from __future__ import annotations
 import math
 import numbers
 
+NO_VALUE = object()  # ConfigError's value when the message shows none
 
-class ConfigError(ValueError):
-    """A value outside what is allowed; the message names the key, the value and the allowed range."""
+
+class Shown(str):
+    """A value given as words (``Shown("150 steps")``): a message shows it as it is, without quotes."""
 
 
 def format_value(value) -> str:
-    """A value as an error message shows it: numbers in %g, anything else by repr."""
+    """A value as an error message shows it: as Python writes it (numpy's numbers as Python's), words as they are."""
+    if isinstance(value, Shown):
+        return str(value)
+    if isinstance(value, numbers.Integral) and not isinstance(value, bool):
+        return str(int(value))
     if isinstance(value, numbers.Real) and not isinstance(value, bool):
-        return f"{value:g}"
+        return repr(float(value))
     return repr(value)
 
 
+class ConfigError(ValueError):
+    """A value that is not allowed: ``key``, ``value`` (NO_VALUE: not shown) and ``allowed``; ``missing``: the key
+    has no value at all."""
+
+    def __init__(self, key: str, value=NO_VALUE, allowed: str = "", missing: bool = False):
+        self.key, self.value, self.allowed, self.missing = str(key), value, str(allowed), missing
+        super().__init__(self.key, value, self.allowed)
+
+    def __str__(self) -> str:
+        if self.missing:
+            text = f"{self.key} is missing: {self.allowed}"
+        elif self.value is NO_VALUE:
+            text = f"{self.key} is not allowed: {self.allowed}"
+        else:
+            text = f"{self.key} = {format_value(self.value)} is not allowed: {self.allowed}"
+        return " ".join(text.split())
+
+    def with_key(self, key: str) -> "ConfigError":
+        """The same error of another key (the config layer's path for an owner's argument)."""
+        error = type(self)(key, self.value, self.allowed, self.missing)
+        error.__cause__ = self.__cause__
+        return error
+
+    def under(self, prefix: str) -> "ConfigError":
+        """The same error with its key under a config path: ``model.net`` + ``kernel_size``. A key already under
+        it stays as it is."""
+        if not prefix or self.key == prefix or self.key.startswith(prefix + "."):
+            return self
+        return self.with_key(f"{prefix}.{self.key}")
+
+
 def bad(key: str, value, allowed: str):
-    """Raise ConfigError: ``key = value is not allowed: allowed``."""
-    raise ConfigError(f"{key} = {value!r} is not allowed: {allowed}")
+    """Raise ConfigError(key, value, allowed)."""
+    raise ConfigError(key, value, allowed)
 
 
 def check_choice(key: str, value, allowed) -> None:
-    """``value`` is one of ``allowed`` (an options.py list)."""
+    """``value`` is one of ``allowed`` (a list of core.options)."""
     if value not in allowed:
-        raise ConfigError(f"{key} = {format_value(value)} is not allowed: one of {', '.join(allowed)}")
+        bad(key, value, f"one of {', '.join(allowed)}")
 
 
-def check_pair(name: str, value) -> tuple[float, float]:
+def check_number(key: str, value, low=None, high=None, *, low_open=False, high_open=False, unit: str = "") -> float:
+    """A finite real number within [low, high] (an end None: unbounded; ``*_open``: excluded); returns it."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) and math.isfinite(value)
+    ok = ok and (low is None or (value > low if low_open else value >= low))
+    ok = ok and (high is None or (value < high if high_open else value <= high))
+    if not ok:
+        bad(key, value, _range_text(low, high, low_open, high_open) + (f" ({unit})" if unit else ""))
+    return float(value)
+
+
+def check_positive(key: str, value, unit: str = "") -> float:
+    """A finite number > 0 (a time step, a speed, a mass)."""
+    return check_number(key, value, 0, low_open=True, unit=unit)
+
+
+def check_int(key: str, value, low: int) -> int:
+    """An integer >= low; returns it."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Real) or int(value) != value or value < low:
+        bad(key, value, f"must be an integer >= {low}")
+    return int(value)
+
+
+def check_pair(key: str, value) -> tuple[float, float]:
     """A (p1, p2) pair: two finite values > 0."""
-    pair = tuple(float(v) for v in value)
+    try:
+        pair = tuple(float(v) for v in value)
+    except (TypeError, ValueError):
+        pair = ()
     if len(pair) != 2 or not all(math.isfinite(v) and v > 0 for v in pair):
-        raise ValueError(f"{name} = {value} is invalid; it must be two finite values > 0 (p1, p2)")
+        bad(key, value, "must be two finite values > 0 (p1, p2)")
     return pair
 
 
-def check_int(name: str, value, low: int) -> int:
-    if isinstance(value, bool) or int(value) != value or value < low:
-        raise ValueError(f"{name} = {value} is invalid; it must be an integer >= {low}")
-    return int(value)
+def _range_text(low, high, low_open, high_open) -> str:
+    if low is not None and high is not None:
+        return f"must lie in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+    if low is not None:
+        return f"must be {'>' if low_open else '>='} {low:g}"
+    if high is not None:
+        return f"must be {'<' if high_open else '<='} {high:g}"
+    return "must be a finite number"

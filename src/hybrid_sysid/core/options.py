@@ -1,25 +1,26 @@
-"""Every list of allowed values a config key takes, in one leaf module without numpy or torch: the objects that
-own a value check it against these, and the config's checks (hybrid_sysid.config.validate) run in a process
-that has not loaded torch (a sweep's parent, a refused command line)."""
+"""Every list of values a key may take, in one leaf module without numpy or torch: the objects that own a value
+check it against these (core.checks.check_choice), and the config's checks run in a process that has not loaded
+torch (a sweep's parent, a refused command line)."""
 
+# hybrid_sysid.physics: the road classes of ISO 8608 the paper uses (eq. 5), and how a recording is measured
+ROAD_CLASSES = "ABCDE"
+MEASUREMENTS = ("paper", "consistent", "continuous")
+STEPPED = ("paper", "consistent")  # the measurements recorded from the eq.-11 step (continuous: exact samples)
+DEFAULT_MEASUREMENT = "consistent"
 # hybrid_sysid.data.windows.WindowCutter: how a window's sensor noise is re-integrated (docs/noise.md)
 INTEGRATIONS = ("t0", "window")
-# hybrid_sysid.data.spec.DatasetSpec: the road amplitude's form (docs/design.md, "Road")
-AMPLITUDES = ("paper", "iso")
-# hybrid_sysid.model.objectives.HybridObjective
+# hybrid_sysid.model.objectives.HybridObjective: the residual's weighting, and what it fits the prediction to (the
+# residual itself, or the per-window least-squares fit of its regressors, plain or whitened by their correlation)
 WEIGHTINGS = ("none", "eiv")
-# what the hybrid objective fits the prediction to: the residual itself, or the per-window least-squares fit of
-# the residual's regressors (plain or in a metric whitened by their correlation)
 TARGETS = ("residual", "least_squares", "whitened")
 FILTER_KEYS = ("low_hz", "high_hz", "taps")
-NORMS = ("l1", "l2")
 # hybrid_sysid.model.networks: activation name -> torch.nn class name; FastCNN's downsampling
 ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "none": "Identity"}
 DOWNSAMPLES = ("pool", "stride")
-# hybrid_sysid.model.module.IdentificationModule: optimiser name -> torch.optim class name; schedules
+# hybrid_sysid.model.optim.OptimSettings: optimiser name -> torch.optim class name; learning-rate schedules
 OPTIMIZERS = {"adam": "Adam", "adamw": "AdamW"}
-SCHEDULES = ("constant", "onecycle", "cosine")
-# trainer.monitor: the validation figure that selects the best checkpoint (auto: by the objective)
+SCHEDULES = ("constant", "onecycle")
+# trainer.monitor: the validation figure that selects the best checkpoint (auto: the objective's own)
 MONITORS = ("auto", "val/loss", "val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev")
 # trainer.profiler: Lightning's profilers (null: none), their report written into the run directory
 PROFILERS = ("simple", "advanced")
@@ -29,3 +30,4 @@ FILTERS = ("none", "bandpass")
 UNKNOWNS = ("p", "m3")
 # what one job of hybrid-sysid does (hybrid_sysid.cli.train): one run, a transfer chain, a tuned comparison
 TASKS = ("train", "transfer", "tuned")
+DIRECTIONS = ("minimize", "maximize")  # a search's direction (hybrid_sysid.experiments.search)

@@ -1,7 +1,7 @@
 """A termination signal as the work sees it: a request that safe points check, and ``Interrupted``, which they
 raise.
 
-The command-line entry points' signal handler (hybrid_sysid.cli.job) only ``request``s the stop: an exception
+The command-line entry points' signal handler (hybrid_sysid.cli.process) only ``request``s the stop: an exception
 raised from a signal handler would land in whatever code runs at that moment, and a few places swallow it (a
 finaliser, a weak-reference callback, a library's broad handler), so the work would go on as if no signal had
 come. The work raises Interrupted itself, at its safe points (``check``): after every training and validation
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import signal
 
-_requested: dict[str, int | None] = {"signum": None}
+_signal: dict[str, int | None] = {"requested": None, "received": None}
 
 
 class Interrupted(BaseException):
@@ -26,20 +26,37 @@ class Interrupted(BaseException):
 
 
 def request(signum: int) -> None:
-    """Remember a termination signal for the safe points (the first one counts)."""
-    _requested["signum"] = _requested["signum"] or signum
+    """Remember a termination signal for the safe points of the work under way (the first one counts)."""
+    _signal["requested"] = _signal["requested"] or signum
+    note(signum)
+
+
+def note(signum: int) -> None:
+    """Remember that the process received a termination signal (between jobs too): its exit status says so."""
+    _signal["received"] = _signal["received"] or signum
 
 
 def clear() -> None:
-    _requested["signum"] = None
+    """A new piece of work starts: a stop requested for an earlier one no longer applies to it."""
+    _signal["requested"] = None
+
+
+def reset() -> None:
+    """As a new process starts (a test that runs several commands in one process)."""
+    _signal.update(requested=None, received=None)
 
 
 def requested() -> int | None:
-    """The signal whose stop was requested, None if none was."""
-    return _requested["signum"]
+    """The signal whose stop was requested for the work under way, None if none was."""
+    return _signal["requested"]
+
+
+def received() -> int | None:
+    """The first termination signal this process received, None if none came."""
+    return _signal["received"]
 
 
 def check() -> None:
     """A safe point: raise Interrupted if a termination signal was requested and has not ended the work yet."""
-    if _requested["signum"] is not None:
-        raise Interrupted(_requested["signum"])
+    if _signal["requested"] is not None:
+        raise Interrupted(_signal["requested"])

@@ -9,7 +9,7 @@ from torch.utils.data import DataLoader
 
 from hybrid_sysid.data.cache import get_dataset
 from hybrid_sysid.data.dataset import SimulatedDataset
-from hybrid_sysid.data.spec import DatasetSpec, WindowSettings, check_eval_windows
+from hybrid_sysid.data.spec import BatchSettings, DatasetSpec, WindowSettings, check_eval_windows
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.data.windows import RandomWindows, WindowCutter, start_state
 from hybrid_sysid.physics import integrate
@@ -49,10 +49,7 @@ class QuarterCarDataModule(L.LightningDataModule):
         spec.validate()
         self.settings = WindowSettings(window, integration, train_fraction, val_fraction)
         self.settings.validate(spec, taps=None if fir is None else len(fir))
-        if batch_size < 1:
-            raise ValueError(f"model.batch_size = {batch_size} is not allowed: must be >= 1")
-        if not train_std >= 0:
-            raise ValueError(f"noise std {train_std} is not allowed: noise.train_std must be >= 0")
+        BatchSettings(batch_size, train_std).validate()
         self.split = self.settings.split(spec)
         self.spec, self.cache_dir, self.window = spec, cache_dir, window
         self.batch_size, self.eval_batch_size = batch_size, eval_batch_size

@@ -63,7 +63,7 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
     masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float).ravel()
     road_id = np.repeat(np.arange(spec.n_roads), spec.n_masses)
     if spec.measurement in STEPPED:
-        roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, spec.amplitude, rng)
+        roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, rng)
     else:  # the same draw of phases; the road stays analytic
         phases = road_phases(spec.n_roads, spec.n_waves, rng)
     c3, k3 = np.full(len(masses), spec.car.c3), np.full(len(masses), spec.car.k3)
@@ -77,7 +77,7 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
         channels = simulate_recordings(roads, road_id, masses, spec.dt, spec.car, spec.measurement, c3=c3, k3=k3)
     else:
         seat, body = continuous_recordings(
-            road_amplitudes(classes, spec.n_waves, spec.amplitude),
+            road_amplitudes(classes, spec.n_waves),
             phases,
             wave_numbers(spec.n_waves) * spec.speed,
             road_id,

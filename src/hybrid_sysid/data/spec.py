@@ -13,10 +13,10 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from hybrid_sysid.core.checks import ConfigError, check_choice
-from hybrid_sysid.core.options import AMPLITUDES, INTEGRATIONS
+from hybrid_sysid.core.checks import bad, check_choice, check_int, check_number, check_positive
+from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, INTEGRATIONS, MEASUREMENTS, ROAD_CLASSES, STEPPED
 from hybrid_sysid.data.splits import Split, split_by_road
-from hybrid_sysid.physics import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED, QuarterCar, stable_dt_limit
+from hybrid_sysid.physics import QuarterCar, stable_dt_limit
 from hybrid_sysid.physics.road import OMEGA_M
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
@@ -26,6 +26,7 @@ SIMULATOR_VERSION = 4  # 2: relative states integrated from seat - body; 3: c3, 
 OUTSIDE_DATA = {"road_classes", "car"}
 # the samples a band-pass must leave of each window (objective.filter, the least-squares baselines)
 MIN_FILTERED = 10
+SEED_MAX = 2**32 - 1  # numpy's and Lightning's seeds are 32-bit unsigned
 
 
 @dataclass(frozen=True)
@@ -38,7 +39,6 @@ class DatasetSpec:
     dt: float = 0.005
     speed: float = 15.0
     n_waves: int = 300
-    amplitude: str = "paper"
     road_classes: tuple = tuple(ROAD_CLASSES)
     m3_min: int = 50
     m3_max: int = 200
@@ -47,61 +47,52 @@ class DatasetSpec:
     car: QuarterCar = field(default_factory=QuarterCar)
     seat_spread: float = 0.0  # C3, K3 of each recording uniform in car.c3 * [1 - s, 1 + s], car.k3 * [1 - s, 1 + s]
 
-    def validate(self, prefix: str = "data") -> None:
-        """Raise ConfigError (a ValueError) naming the key, the value and what is allowed; before any work."""
-
-        def bad(key, value, allowed):
-            raise ConfigError(f"{key} = {value!r} is not allowed: {allowed}")
-
-        if self.n_roads < 2:
-            bad(f"{prefix}.n_roads", self.n_roads, "need at least 2 roads to split by road into train and test")
-        if self.n_masses < 1:
-            bad(f"{prefix}.n_masses", self.n_masses, "must be >= 1")
-        if self.n_steps < 2:
-            bad(f"{prefix}.n_steps", self.n_steps, "must be >= 2")
-        if not self.dt > 0:
-            bad(f"{prefix}.dt", self.dt, "must be > 0 (seconds)")
-        if not 0 <= self.seat_spread < 1:
-            bad(f"{prefix}.seat_spread", self.seat_spread, "must lie in [0, 1) (a fraction of car.c3 and car.k3)")
-        if self.measurement in STEPPED and self.m3_min > 0:  # the continuous measurement takes no step
-            limit = stable_dt_limit(self.car, self.m3_min, self.m3_max, self.seat_spread)
-            if self.dt > limit:
-                spread = f", seat_spread {self.seat_spread:g}" if self.seat_spread else ""
-                bad(
-                    f"{prefix}.dt",
-                    self.dt,
-                    f"the semi-implicit Euler scheme is unstable above {limit:.4g} s for "
-                    f"this car ({self.car.describe()}; m3 in [{self.m3_min}, {self.m3_max}] kg{spread})",
-                )
-        if not self.speed > 0:
-            bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
+    def validate(self) -> None:
+        """ConfigError naming the field (``car.<constant>`` for the car's), the value and what is allowed, before
+        any work: the choices first, then each value once, then what depends on several of them, and last the
+        stability search of the time step (the one check that costs)."""
+        check_choice("measurement", self.measurement, MEASUREMENTS)
+        if not self.road_classes:
+            bad("road_classes", list(self.road_classes), f"a non-empty list of classes from {', '.join(ROAD_CLASSES)}")
+        if any(c not in ROAD_CLASSES for c in self.road_classes):
+            bad("road_classes", list(self.road_classes), f"each class must be one of {', '.join(ROAD_CLASSES)}")
+        if not (isinstance(self.n_roads, int) and self.n_roads >= 2):
+            bad("n_roads", self.n_roads, "need at least 2 roads to split by road into train and test")
+        check_int("n_masses", self.n_masses, 1)
+        check_int("n_steps", self.n_steps, 2)
+        check_positive("dt", self.dt, "seconds")
+        check_positive("speed", self.speed, "m/s")
+        check_int("n_waves", self.n_waves, 2)
+        if not (isinstance(self.m3_min, (int, float)) and self.m3_min > 0):
+            bad("m3_min", self.m3_min, "must be > 0 kg")
+        if not self.m3_max >= self.m3_min:
+            bad("m3_max", self.m3_max, f"empty mass range: must be >= m3_min = {self.m3_min}")
+        check_number("seat_spread", self.seat_spread, 0, 1, high_open=True, unit="a fraction of car.c3 and car.k3")
+        if not (isinstance(self.seed, int) and 0 <= self.seed <= SEED_MAX):
+            bad("seed", self.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
+        for name, value in asdict(self.car).items():
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+                bad(f"car.{name}", value, "must be finite and > 0")
         if self.measurement not in STEPPED:  # exact samples of the continuous motion: the road is not sampled
             top = float(OMEGA_M) * self.speed / (2 * math.pi)  # the road's highest frequency at this speed, Hz
             if 0.5 / self.dt < top:
                 bad(
-                    f"{prefix}.dt",
+                    "dt",
                     self.dt,
-                    f"with {prefix}.measurement = continuous its Nyquist frequency, {0.5 / self.dt:.3g} Hz, lies "
-                    f"below the road's content at {prefix}.speed = {self.speed:g} m/s (up to {top:.3g} Hz: wave "
-                    f"numbers up to 6 pi rad/m), which would alias; allowed: dt <= {0.5 / top:.4g} s",
+                    f"with measurement = continuous its Nyquist frequency, {0.5 / self.dt:.3g} Hz, lies below the "
+                    f"road's content at speed = {self.speed:g} m/s (up to {top:.3g} Hz: wave numbers up to 6 pi "
+                    f"rad/m), which would alias; allowed: dt <= {0.5 / top:.4g} s",
                 )
-        if not self.speed > 0:
-            bad(f"{prefix}.speed", self.speed, "must be > 0 (m/s)")
-        if self.n_waves < 2:
-            bad(f"{prefix}.n_waves", self.n_waves, "must be >= 2")
-        if self.amplitude not in AMPLITUDES:
-            bad(f"{prefix}.amplitude", self.amplitude, f"one of {', '.join(AMPLITUDES)}")
-        if not self.road_classes:
-            bad("road.classes", list(self.road_classes), f"a non-empty list of classes from {', '.join(ROAD_CLASSES)}")
-        for c in self.road_classes:
-            if c not in ROAD_CLASSES:
-                bad("road.classes", list(self.road_classes), f"each class must be one of {', '.join(ROAD_CLASSES)}")
-        if self.m3_min <= 0:
-            bad(f"{prefix}.m3_min", self.m3_min, "must be > 0 kg")
-        if self.m3_max < self.m3_min:
-            bad(f"{prefix}.m3_max", self.m3_max, f"empty mass range: must be >= data.m3_min = {self.m3_min}")
-        if self.measurement not in MEASUREMENTS:
-            bad(f"{prefix}.measurement", self.measurement, f"one of {', '.join(MEASUREMENTS)}")
+        else:  # the continuous measurement takes no step
+            limit = stable_dt_limit(self.car, self.m3_min, self.m3_max, self.seat_spread)
+            if self.dt > limit:
+                spread = f", seat_spread {self.seat_spread:g}" if self.seat_spread else ""
+                bad(
+                    "dt",
+                    self.dt,
+                    f"the semi-implicit Euler scheme is unstable above {limit:.4g} s for this car "
+                    f"({self.car.describe()}; m3 in [{self.m3_min}, {self.m3_max}] kg{spread})",
+                )
 
     def key(self) -> str:
         payload = asdict(self)
@@ -136,18 +127,17 @@ class WindowSettings:
     train_fraction: float = 0.8  # of the roads; the rest are test roads
     val_fraction: float = 0.125  # of the training roads, held out for model selection
 
-    def validate(self, spec: DatasetSpec, min_window: int = 1, taps: int | None = None) -> None:
-        """Raise ConfigError naming the key; ``min_window``: the network's shortest window, ``taps``: a band-pass
-        that each window must leave MIN_FILTERED samples of."""
-        if not min_window <= self.window <= spec.n_steps:
-            why = f" ({min_window} = the shortest window the network's kernels fit)" if min_window > 1 else ""
-            raise ConfigError(
-                f"data.window = {self.window} is not allowed: must lie in [{min_window}, "
-                f"data.n_steps = {spec.n_steps}]{why}"
-            )
-        check_choice("data.integration", self.integration, INTEGRATIONS)
+    def validate(self, spec: DatasetSpec, bounds: tuple[int, int | None] = (1, None), taps: int | None = None) -> None:
+        """ConfigError naming the field; ``bounds``: the shortest and longest window the network reads (None: any),
+        ``taps``: the length of a band-pass that each window must leave MIN_FILTERED samples of (the objective's)."""
+        check_choice("integration", self.integration, INTEGRATIONS)
+        low, high = bounds
+        top = spec.n_steps if high is None else min(high, spec.n_steps)
+        if not (isinstance(self.window, int) and low <= self.window <= top):
+            why = f" ({low} to {high or 'any number of'} steps: what the network reads)" if bounds != (1, None) else ""
+            bad("window", self.window, f"must lie in [{low}, n_steps = {top}]{why}")
         self.split(spec)
-        check_filter_fits(taps, self.window, "objective.filter.taps", "data.window")
+        check_filter_fits(taps, self.window, "taps", "window")
 
     def split(self, spec: DatasetSpec) -> Split:
         """Train, validation and test recordings of the dataset: by road and per road class (data.splits)."""
@@ -158,20 +148,43 @@ class WindowSettings:
         return spec.n_steps - self.window + 1
 
 
+def window_starts(n_steps: int, window: int, k: int) -> np.ndarray:
+    """K window starts evenly spaced over a recording of n_steps, the first at 0 and the last at the end (integer
+    division: distinct whenever K <= n_steps - window + 1)."""
+    return np.arange(k) * (n_steps - window) // max(k - 1, 1)
+
+
 def check_filter_fits(taps: int | None, length: int, key: str, length_key: str) -> None:
-    """A band-pass of ``taps`` must leave MIN_FILTERED samples of what it filters (a window or a recording)."""
+    """A band-pass of ``taps`` must leave MIN_FILTERED samples of what it filters (a window or a recording), whose
+    length ``length_key`` names."""
     if taps is not None and taps > length - MIN_FILTERED + 1:
-        raise ConfigError(
-            f"{key} = {taps} is not allowed: must be <= {length_key} - {MIN_FILTERED - 1} = "
-            f"{length - MIN_FILTERED + 1} (the band-pass must leave at least {MIN_FILTERED} samples)"
+        bad(
+            key,
+            taps,
+            f"must be <= {length_key} - {MIN_FILTERED - 1} = {length - MIN_FILTERED + 1} (the band-pass must leave "
+            f"at least {MIN_FILTERED} samples)",
         )
 
 
-def check_eval_windows(windows, n_starts: int) -> None:
-    """evaluation.windows: K values, each an integer in [1, the window starts a recording offers]."""
+def check_eval_windows(windows, n_starts: int, key: str = "windows") -> None:
+    """K values, each an integer in [1, the window starts a recording offers] (evaluation.windows)."""
     windows = list(windows)
     if not windows or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= n_starts for k in windows):
-        raise ConfigError(
-            f"evaluation.windows = {windows} is not allowed: a non-empty list of integers K in [1, "
-            f"data.n_steps - data.window + 1 = {n_starts}] (windows per recording)"
+        bad(
+            key,
+            windows,
+            f"a non-empty list of integers K in [1, data.n_steps - data.window + 1 = {n_starts}] (windows per "
+            "recording)",
         )
+
+
+@dataclass(frozen=True)
+class BatchSettings:
+    """How the data module serves training batches: their size and the Gaussian noise added to their windows."""
+
+    batch_size: int = 64
+    train_std: float = 0.0  # m/s^2, on both channels
+
+    def validate(self) -> None:
+        check_int("batch_size", self.batch_size, 1)
+        check_number("train_std", self.train_std, 0, unit="m/s^2")

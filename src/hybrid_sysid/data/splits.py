@@ -7,7 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import bad, check_number
 
 # the order is part of the seeds: a split's index seeds its evaluation windows and noise
 SPLITS = ("train", "val", "test")
@@ -35,17 +35,16 @@ def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fracti
     class in every split (a split by position left data=default without a D road among its test roads). Without
     it, or when a class has too few roads to be in all three, the first roads train (the last of them validate)
     and the rest test, as in the paper (80 / 20 roads)."""
-    if not 0.0 < train_fraction < 1.0:
-        raise ConfigError(f"data.train_fraction = {train_fraction} is not allowed: must lie in (0, 1)")
-    if not 0.0 <= val_fraction < 1.0:
-        raise ConfigError(f"data.val_fraction = {val_fraction} is not allowed: must lie in [0, 1)")
+    check_number("train_fraction", train_fraction, 0, 1, low_open=True, high_open=True)
+    check_number("val_fraction", val_fraction, 0, 1, high_open=True)
     n_trainval, n_val = _counts(n_roads, train_fraction, val_fraction)
     n_train = n_trainval - n_val
     if n_train < 1 or n_trainval >= n_roads:
-        raise ConfigError(
-            f"data.n_roads = {n_roads} is too few for data.train_fraction = {train_fraction} and "
-            f"data.val_fraction = {val_fraction}: need at least one training, one test"
-            + (" and one validation road" if val_fraction > 0 else " road")
+        bad(
+            "n_roads",
+            n_roads,
+            f"too few for train_fraction = {train_fraction:g} and val_fraction = {val_fraction:g}: need at least "
+            "one training, one test" + (" and one validation road" if val_fraction > 0 else " road"),
         )
     roads = np.arange(n_roads)
     if road_class is None:
@@ -54,7 +53,7 @@ def split_by_road(n_roads: int, n_masses: int, train_fraction: float, val_fracti
     else:
         road_class = np.asarray(road_class)
         if len(road_class) != n_roads:
-            raise ValueError(f"road_class has {len(road_class)} entries for {n_roads} roads")
+            bad("road_class", f"{len(road_class)} entries", f"one class per road, {n_roads}")
         _, first = np.unique(road_class, return_index=True)
         groups = [roads[road_class == road_class[i]] for i in sorted(first)]
         trainval = _per_class(np.array([len(g) for g in groups]), n_trainval)

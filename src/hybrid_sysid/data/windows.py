@@ -12,6 +12,7 @@ import numpy as np
 import torch
 from torch.utils.data import IterableDataset
 
+from hybrid_sysid.core.checks import bad
 from hybrid_sysid.data.dataset import SimulatedDataset
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import fir_valid
@@ -65,7 +66,7 @@ def start_state(starts: np.ndarray, dt: float, normals: np.ndarray, rule: str = 
         cov = np.where(after, 2 * dt**3 * ((2 * s - 1) / 8 + s * (s - 1) / 2), 0.0)
         var_x = np.where(after, 2 * dt**4 * ((2 * s - 1) ** 2 / 16 + (s - 1) * s * (2 * s - 1) / 6), 0.0)
     else:
-        raise ValueError(f"rule = {rule!r} is unknown; allowed: symplectic, trapezoid")
+        bad("rule", rule, "one of symplectic, trapezoid")
     a = np.sqrt(var_v)
     b = np.divide(cov, a, out=np.zeros_like(a), where=a > 0)
     c = np.sqrt(np.maximum(var_x - b * b, 0.0))

@@ -1,2 +1,5 @@
-"""Experiments that chain runs inside one job, which a Hydra sweep cannot: transfer (task=transfer) and tuned
-(task=tuned); presets reads the config groups they borrow from."""
+"""Experiments that chain runs inside one job (experiment=transfer, experiment=tuned) or search a space, and what
+each adds to its sweep's report (transfer_report, tuned_report: registered with hybrid_sysid.report.extras when
+this package is imported, without torch)."""
+
+from hybrid_sysid.experiments import transfer_report, tuned_report  # noqa: F401 - their report additions

@@ -8,7 +8,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import CONF_DIR
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import bad
 
 
 def preset(group: str, choice: str, key: str) -> DictConfig:
@@ -16,5 +16,5 @@ def preset(group: str, choice: str, key: str) -> DictConfig:
     path = Path(CONF_DIR) / group / f"{choice}.yaml"
     if not path.is_file():
         options = sorted(p.stem for p in path.parent.glob("*.yaml"))
-        raise ConfigError(f"{key}: {group} = {choice!r} is not allowed: one of {', '.join(options)}")
+        bad(key, choice, f"a {group} preset: one of {', '.join(options)}")
     return OmegaConf.load(path)

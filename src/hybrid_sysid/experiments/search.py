@@ -17,7 +17,8 @@ from dataclasses import dataclass
 import numpy as np
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import bad, check_choice, check_int
+from hybrid_sysid.core.options import DIRECTIONS
 
 SYNTAX = "choice(...) or interval(a, b), optionally tag(log, interval(a, b))"
 # TPE settings a config may give (the others take functions, which a config cannot hold)
@@ -42,7 +43,7 @@ def _parse(key: str, spec, name: str):
     try:
         return OverridesParser.create().parse_override(f"{key}={spec}").value()
     except Exception as exc:  # noqa: BLE001 - Hydra's parser raises its own classes
-        raise ConfigError(f"{name}: {' '.join(str(exc).split())}") from None
+        bad(name, spec, f"{SYNTAX} ({' '.join(str(exc).split())})")
 
 
 def search_space(params, where: str = "hydra.sweeper") -> dict:
@@ -52,14 +53,14 @@ def search_space(params, where: str = "hydra.sweeper") -> dict:
 
     space = {}
     for key, spec in (params or {}).items():
-        name = f"{where}.params.{key} = {spec!r} is not allowed"
+        name = f"{where}.params.{key}"
         value = _parse(key, spec, name)
         if isinstance(value, ChoiceSweep):
             space[key] = CategoricalDistribution(list(value.list))
         elif isinstance(value, IntervalSweep):
             space[key] = FloatDistribution(value.start, value.end, log="log" in value.tags)
         else:
-            raise ConfigError(f"{name}: {SYNTAX}")
+            bad(name, spec, SYNTAX)
     return space
 
 
@@ -70,32 +71,33 @@ def check_search(cfg: DictConfig, params, n_trials, where: str = "hydra.sweeper"
     study). Returns the space (``search_space``); ConfigError naming ``where``'s key otherwise."""
     from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
 
-    if isinstance(n_trials, bool) or not isinstance(n_trials, int) or n_trials < 1:
-        raise ConfigError(f"{where}.n_trials = {n_trials!r} is not allowed: an integer >= 1")
+    check_int(f"{where}.n_trials", n_trials, 1)
     for key, spec in (params or {}).items():
-        name = f"{where}.params.{key} = {spec!r} is not allowed"
+        name = f"{where}.params.{key}"
         value = _parse(key, spec, name)
         if isinstance(value, IntervalSweep):
             if not value.start < value.end:
-                raise ConfigError(f"{name}: interval(a, b) needs a < b")
+                bad(name, spec, "interval(a, b) needs a < b")
             if "log" in value.tags and not value.start > 0:
-                raise ConfigError(f"{name}: a log interval needs bounds > 0")
+                bad(name, spec, "a log interval needs bounds > 0")
             values = [value.start, value.end]
         elif isinstance(value, ChoiceSweep):
             values = list(value.list)
         else:
-            raise ConfigError(f"{name}: {SYNTAX}")
+            bad(name, spec, SYNTAX)
         current = OmegaConf.select(cfg, key, default=None)
         if current is None:
-            raise ConfigError(f"{name}: the config has no value at {key} to search")
+            bad(name, spec, f"the config has no value at {key} to search")
         for v in values:
             number = isinstance(v, (int, float)) and not isinstance(v, bool)
             wanted = isinstance(current, (int, float)) and not isinstance(current, bool)
             if wanted != number or (
                 isinstance(current, int) and not isinstance(current, bool) and isinstance(v, float)
             ):
-                raise ConfigError(
-                    f"{name}: {v!r} is not of the type of {key} ({type(current).__name__}, {current!r} in the config)"
+                bad(
+                    name,
+                    spec,
+                    f"{v!r} is not of the type of {key} ({type(current).__name__}, {current!r} in the config)",
                 )
     return search_space(params, where)
 
@@ -106,10 +108,10 @@ def check_sampler(settings, where: str = "hydra.sweeper.sampler") -> dict:
     settings = OmegaConf.to_container(settings) if isinstance(settings, DictConfig) else dict(settings or {})
     for key in settings:
         if key not in SAMPLER_KEYS:
-            raise ConfigError(f"{where}.{key} is not allowed: one of {', '.join(SAMPLER_KEYS)}")
+            bad(f"{where}.{key}", settings[key], f"a setting of the TPE sampler: {', '.join(SAMPLER_KEYS)}")
     seed = settings.get("seed")
     if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
-        raise ConfigError(f"{where}.seed = {seed!r} is not allowed: an integer, or null for an unseeded search")
+        bad(f"{where}.seed", seed, "an integer, or null for an unseeded search")
     return settings
 
 
@@ -152,11 +154,9 @@ def study_settings(cfg: DictConfig, settings, arguments, where: str = "hydra.swe
             fixed.append(override.input_line)
     space = check_search(cfg, params, settings.get("n_trials"), where)
     n_jobs = settings.get("n_jobs", 1)
-    if isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs < 1:
-        raise ConfigError(f"{where}.n_jobs = {n_jobs!r} is not allowed: an integer >= 1")
+    check_int(f"{where}.n_jobs", n_jobs, 1)
+    check_choice(f"{where}.direction", settings.get("direction", "minimize"), DIRECTIONS)
     direction = settings.get("direction", "minimize")
-    if direction not in ("minimize", "maximize"):
-        raise ConfigError(f"{where}.direction = {direction!r} is not allowed: minimize or maximize")
     return StudySettings(
         space=space,
         fixed=fixed,

@@ -31,7 +31,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import CONF_DIR, validate
 from hybrid_sysid.config.resolvers import p_prior
 from hybrid_sysid.config.targets import build
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.experiments.presets import preset
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.run import evaluate_checkpoint, train
@@ -78,9 +78,7 @@ def composed(group: str, choice: str, key: str) -> DictConfig:
         elif isinstance(entry, str):
             parts.append(composed(group, entry, key))
         else:  # the presets this module reads name only presets of their own group
-            raise ConfigError(
-                f"{key}: {group} = {choice!r} is not allowed: its defaults list entry {entry} is not a {group} preset"
-            )
+            bad(key, choice, f"a {group} preset whose defaults list names {group} presets ({entry} is not one)")
     if "_self_" not in defaults:
         parts.append(node)
     return OmegaConf.merge(*parts)
@@ -99,8 +97,10 @@ def target(cfg: DictConfig, name: str, scenario) -> DictConfig:
     """The config on a scenario's target: ``car`` names a car preset (conf/car), ``data`` holds data values."""
     unknown = sorted(set(scenario) - set(SCENARIO_KEYS))
     if unknown:
-        raise ConfigError(
-            f"transfer.scenarios.{name}.{unknown[0]} is not allowed: a scenario sets {' and '.join(SCENARIO_KEYS)}"
+        bad(
+            f"transfer.scenarios.{name}.{unknown[0]}",
+            scenario[unknown[0]],
+            f"a scenario sets {' and '.join(SCENARIO_KEYS)}",
         )
     out = OmegaConf.merge(cfg, {"data": scenario.get("data") or {}})
     if scenario.get("car"):
@@ -113,8 +113,8 @@ def _presets(group: str) -> list[str]:
 
 
 def _reads_labels(cfg: DictConfig, objective: str) -> bool:
-    """Whether an objective preset reads labels: its built objective's ``uses_labels`` (model.objectives)."""
-    return bool(getattr(build(variant(cfg, objective).objective, "objective"), "uses_labels", True))
+    """Whether an objective preset reads labels: its built objective's ``uses_labels`` (model.base.Objective)."""
+    return bool(build(variant(cfg, objective).objective, "objective").uses_labels)
 
 
 def _label_free_objectives(cfg: DictConfig, key: str, value, names: list[str]) -> None:
@@ -124,10 +124,7 @@ def _label_free_objectives(cfg: DictConfig, key: str, value, names: list[str]) -
     if offending:
         allowed = [n for n in _presets("objective") if not _reads_labels(cfg, n)]
         why = "no such objective preset" if offending[0] not in _presets("objective") else "it reads labels"
-        raise ConfigError(
-            f"{key} = {value!r} is not allowed: {offending[0]}: {why}; "
-            f"a label-free objective preset (conf/objective): {', '.join(allowed)}"
-        )
+        bad(key, value, f"{offending[0]}: {why}; a label-free objective preset (conf/objective): {', '.join(allowed)}")
 
 
 def check_settings(cfg: DictConfig) -> None:
@@ -136,38 +133,36 @@ def check_settings(cfg: DictConfig) -> None:
     adapt = [str(o) for o in t.adapt_objectives]
     twice = sorted({o for o in adapt if adapt.count(o) > 1})
     if twice:
-        raise ConfigError(
-            f"transfer.adapt_objectives = {adapt!r} is not allowed: {twice[0]} twice; each objective once "
-            "(one row each)"
-        )
+        bad("transfer.adapt_objectives", adapt, f"{twice[0]} twice; each objective once (one row each)")
     _label_free_objectives(cfg, "transfer.adapt_objectives", adapt, adapt)
     # the labelled objective from scratch on the target is the oracle row already
     _label_free_objectives(cfg, "transfer.scratch_objective", str(t.scratch_objective), [str(t.scratch_objective)])
     if t.baseline is not None and str(t.baseline) not in _presets("baseline"):
-        raise ConfigError(
-            f"transfer.baseline = {t.baseline!r} is not allowed: null or a baseline preset (conf/baseline): "
-            f"{', '.join(_presets('baseline'))}"
+        bad(
+            "transfer.baseline",
+            t.baseline,
+            f"null or a baseline preset (conf/baseline): {', '.join(_presets('baseline'))}",
         )
 
 
 def check_bounds(source: DictConfig, goal: DictConfig, name: str) -> None:
     """An adapted network keeps the source network's output bounds (init_from loads them with the weights), so
     adaptation can only reach the target's p inside them: the target's prior (``${p_prior:...}``) must be, else
-    a ConfigError naming the scenario. A network without a bounded head (no log_lo, log_span buffers) passes."""
-    buffers = dict(build(source.model.net, "model.net").named_buffers())
-    if "log_lo" not in buffers or "log_span" not in buffers:
+    a ConfigError naming the scenario. A network without a bounded head passes (model.base.Network)."""
+    bounds = build(source.model.net, "model.net").output_bounds()
+    if bounds is None:
         return
-    low = buffers["log_lo"].double().exp().tolist()
-    high = (buffers["log_lo"] + buffers["log_span"]).double().exp().tolist()
+    low, high = (b.tolist() for b in bounds)
     want = p_prior("min", _root_=goal), p_prior("max", _root_=goal)
     for i in range(2):
         # relative slack: the float32 buffers round the bounds
         if want[0][i] < low[i] * (1 - 1e-6) or want[1][i] > high[i] * (1 + 1e-6):
             raise ConfigError(
-                f"transfer.scenarios.{name} is not allowed with adaptation: the target's p{i + 1} range "
-                f"{want[0][i]:.4g} to {want[1][i]:.4g} leaves the source network's output bounds {low[i]:.4g} to "
-                f"{high[i]:.4g}, which the adapted networks keep; widen the source's prior (data.m3_min, "
-                "data.m3_max, data.seat_spread) or set transfer.adapt_objectives=[]"
+                f"transfer.scenarios.{name}",
+                allowed=f"with adaptation the target's p{i + 1} range {want[0][i]:.4g} to {want[1][i]:.4g} leaves the "
+                f"source network's output bounds {low[i]:.4g} to {high[i]:.4g}, which the adapted networks keep; "
+                "widen the source's prior (data.m3_min, data.m3_max, data.seat_spread) or set "
+                "transfer.adapt_objectives=[]",
             )
 
 

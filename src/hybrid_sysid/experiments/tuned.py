@@ -26,7 +26,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import validate
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import bad, check_int
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.presets import preset
 from hybrid_sysid.experiments.search import check_sampler, check_search, sampler_for
@@ -49,9 +49,11 @@ def defaults_in(cfg: DictConfig, space: dict) -> dict:
             else isinstance(value, (int, float)) and dist.low <= value <= dist.high
         )
         if value is None or not inside:
-            raise ConfigError(
-                f"{key} = {value!r} is not allowed with experiment=tuned: the search's first trial "
-                f"is the config's own values, and this one lies outside {dist}"
+            bad(
+                key,
+                value,
+                f"a value inside the search's space with experiment=tuned, {dist} (its first trial is the "
+                "config's own values)",
             )
         out[key] = value
     return out
@@ -84,12 +86,12 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     job_dir, t = Path(job_dir), cfg.tuned
     sweeper = preset("hparams_search", t.search, "tuned.search").hydra.sweeper
     if t.n_trials < 1:
-        raise ConfigError(f"tuned.n_trials = {t.n_trials} is not allowed: must be >= 1")
+        check_int("tuned.n_trials", t.n_trials, 1)
     space = check_search(cfg, sweeper.params, t.n_trials, "tuned.search: hydra.sweeper")
     trial_settings = {"trainer": {"curve_every_n_steps": None}}  # a trial is scored on validation alone
     defaults = defaults_in(cfg, space)
     if not t.seeds:
-        raise ConfigError("tuned.seeds = [] is not allowed: give at least one seed, e.g. [0, 1, 2]")
+        bad("tuned.seeds", [], "at least one seed, e.g. [0, 1, 2]")
     validate(with_values(cfg, defaults, t.trial_seed, trial_settings))
     validate(with_values(cfg, defaults, t.seeds[0]))
     base = [o for o in job_overrides if not o.startswith("seed=")]

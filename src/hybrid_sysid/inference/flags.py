@@ -70,14 +70,11 @@ class TrainedRange:
 
 def trained_range(cfg: DictConfig, net=None) -> TrainedRange:
     """The run's p range (the prior its config derives from the car, the masses and the seat spread:
-    ``${p_prior:...}``) and, for a network with a bounded head (FastCNN: buffers log_lo, log_span, loaded with
-    its weights), that head's bounds."""
+    ``${p_prior:...}``) and, for a network with a bounded head, that head's bounds as its weights hold them
+    (model.base.Network.output_bounds)."""
     lo, hi = (np.array(p_prior(which, _root_=cfg)) for which in ("min", "max"))
-    bound_lo = bound_hi = None
-    buffers = dict(net.named_buffers()) if net is not None else {}
-    if "log_lo" in buffers and "log_span" in buffers:
-        log_lo = buffers["log_lo"].double().numpy()
-        bound_lo, bound_hi = np.exp(log_lo), np.exp(log_lo + buffers["log_span"].double().numpy())
+    bounds = net.output_bounds() if net is not None else None
+    bound_lo, bound_hi = bounds if bounds is not None else (None, None)
     return TrainedRange(lo, hi, (float(cfg.data.m3_min), float(cfg.data.m3_max)), bound_lo, bound_hi)
 
 

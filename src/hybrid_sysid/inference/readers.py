@@ -11,7 +11,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.inference.estimator import DT_RTOL, InputError
+from hybrid_sysid.core.checks import Shown
+from hybrid_sysid.inference.estimator import DT_RTOL
+from hybrid_sysid.inference.inputs import InputError
 
 CHANNELS = ("seat_acc", "body_acc")
 COLUMNS = (*CHANNELS, "time", "recording")  # the CSV columns read; any other is ignored
@@ -34,9 +36,11 @@ def read_input(path: Path, dt: float | None = None) -> Recordings:
     """A .npz or CSV file (any other suffix) as Recordings; ``dt`` (the dt= argument) stands in for the file's
     time column or dt array, or overrides it when it agrees within UNIFORM_RTOL (for rounded time stamps)."""
     if not path.exists():
-        raise InputError(f"input = {path}: no such file")
+        raise InputError("input", Shown(str(path)), "a file that exists")
     if path.is_file() and path.stat().st_size == 0:
-        raise InputError(f"input = {path} is empty; allowed: a CSV or .npz file of recordings (docs/predict.md)")
+        raise InputError(
+            "input", Shown(str(path)), "a CSV or .npz file of recordings, not an empty one (docs/predict.md)"
+        )
     return read_npz(path, dt) if path.suffix == ".npz" else read_csv(path, dt)
 
 
@@ -46,19 +50,25 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
     try:
         df = pd.read_csv(path, skipinitialspace=True)
     except pd.errors.EmptyDataError:
-        raise InputError(f"input = {path} is empty; allowed: a header line and rows (docs/predict.md)") from None
+        raise InputError(
+            "input", Shown(str(path)), "a header line and rows, not an empty file (docs/predict.md)"
+        ) from None
     except (OSError, UnicodeDecodeError, pd.errors.ParserError) as exc:
-        raise InputError(f"input = {path} cannot be read as CSV ({type(exc).__name__}: {exc})") from None
+        raise InputError(
+            "input", Shown(str(path)), f"a file that can be read as CSV ({type(exc).__name__}: {exc})"
+        ) from None
     check_header(path)
     needed = list(CHANNELS) + ([] if dt is not None else ["time"])
     missing = [c for c in needed if c not in df.columns]
     if missing:
         raise InputError(
-            f"input = {path} has no column {', '.join(missing)} (its columns: "
-            f"{', '.join(map(str, df.columns))}); needed: seat_acc, body_acc, and time or dt="
+            "input",
+            Shown(str(path)),
+            f"columns seat_acc, body_acc, and time or dt= (it has no {', '.join(missing)}; its columns: "
+            f"{', '.join(map(str, df.columns))})",
         )
     if df.empty:
-        raise InputError(f"input = {path} holds a header but no rows; allowed: one row per sample")
+        raise InputError("input", Shown(str(path)), "one row per sample (it holds a header but no rows)")
     columns = [c for c in (*CHANNELS, "time") if c in df.columns]
     for c in columns:
         df[c] = numbers(df[c], path)
@@ -79,9 +89,10 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
     for name, s in others:
         if abs(s - step) > DT_RTOL * step:
             raise InputError(
-                f"input = {path}: recording {name!r} has a time step of {s:.9g} s, recording "
-                f"{first!r} {step:.9g} s; allowed: one sample rate per file (within {DT_RTOL:g} "
-                "relative; give dt= when the time stamps are rounded)"
+                f"input = {path}: the time step of recording {name!r}",
+                Shown(f"{s:.9g} s"),
+                f"one sample rate per file, recording {first!r}'s {step:.9g} s within {DT_RTOL:g} relative (give dt= "
+                "when the time stamps are rounded)",
             )
     return Recordings(seat, body, step, names)
 
@@ -94,14 +105,17 @@ def check_header(path: Path) -> None:
         with open(path, newline="", encoding="utf-8-sig") as f:
             header = next((row for row in csv.reader(f, skipinitialspace=True) if row), [])
     except (OSError, UnicodeDecodeError, csv.Error) as exc:
-        raise InputError(f"input = {path} cannot be read as CSV ({type(exc).__name__}: {exc})") from None
+        raise InputError(
+            "input", Shown(str(path)), f"a file that can be read as CSV ({type(exc).__name__}: {exc})"
+        ) from None
     counts = Counter(header)
     for name in COLUMNS:
         if counts[name] > 1:
             where = [str(i + 1) for i, h in enumerate(header) if h == name]
             raise InputError(
-                f"input = {path}: column {name} appears {counts[name]} times in the header (columns "
-                f"{', '.join(where)}); allowed: each of {', '.join(COLUMNS)} once"
+                f"input = {path}: column {name}",
+                Shown(f"{counts[name]} times in the header (columns {', '.join(where)})"),
+                f"each of {', '.join(COLUMNS)} once",
             )
 
 
@@ -118,15 +132,13 @@ def numbers(column: pd.Series, path: Path) -> pd.Series:
     if flags.size:
         flag = bool(column.iloc[flags[0]])
         raise InputError(
-            f"input = {path}: column {column.name} holds {flag} in data row {flags[0] + 1}; allowed: numbers, "
-            "not true/false"
+            f"input = {path}: column {column.name} in data row {flags[0] + 1}", flag, "numbers, not true/false"
         )
     values = pd.to_numeric(column, errors="coerce")
     bad = np.flatnonzero(values.isna().to_numpy() & column.notna().to_numpy())
     if bad.size:
         raise InputError(
-            f"input = {path}: column {column.name} holds {column.iloc[bad[0]]!r} in data row "
-            f"{bad[0] + 1}; allowed: numbers"
+            f"input = {path}: column {column.name} in data row {bad[0] + 1}", column.iloc[bad[0]], "numbers"
         )
     return values
 
@@ -135,17 +147,17 @@ def uniform_step(t: np.ndarray, path: Path, name) -> float:
     """The time column's step, (t_last - t_first) / (n - 1), after checking every step lies near it."""
     where = f"input = {path}: column time of recording {name!r}"
     if not np.isfinite(t).all():
-        raise InputError(f"{where} holds {t[~np.isfinite(t)][0]}; allowed: finite times in seconds")
+        raise InputError(where, float(t[~np.isfinite(t)][0]), "finite times in seconds")
     if len(t) < 2:
-        raise InputError(f"{where} has {len(t)} row; allowed: at least 2 rows to give the step")
+        raise InputError(where, Shown(f"{len(t)} row"), "at least 2 rows to give the step")
     step, steps = (t[-1] - t[0]) / (len(t) - 1), np.diff(t)
     off = np.flatnonzero(np.abs(steps - step) > UNIFORM_RTOL * abs(step)) if step > 0 else [0]
     if len(off):
         k = off[0]
         raise InputError(
-            f"{where} is not uniform: from {t[k]:g} s to {t[k + 1]:g} s is a step of {steps[k]:g} s "
-            f"against a mean of {step:g} s; allowed: increasing times, every step within "
-            f"{UNIFORM_RTOL:.0%} of the mean"
+            where,
+            Shown(f"a step of {steps[k]:g} s from {t[k]:g} s to {t[k + 1]:g} s"),
+            f"uniform, increasing times, every step within {UNIFORM_RTOL:.0%} of the mean, {step:g} s",
         )
     return float(step)
 
@@ -156,8 +168,7 @@ def choose_dt(file_dt: float, dt: float | None, path: Path, what: str) -> float:
         return file_dt
     if abs(file_dt - dt) > UNIFORM_RTOL * dt:
         raise InputError(
-            f"dt = {dt:g} s disagrees with {what} of input = {path} ({file_dt:g} s); allowed: "
-            f"within {UNIFORM_RTOL:.0%}, or leave dt= out"
+            "dt", dt, f"{what} of input = {path}, {file_dt:g} s, within {UNIFORM_RTOL:.0%}, or no dt= at all"
         )
     return dt
 
@@ -167,11 +178,15 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
     try:
         loaded = np.load(path, allow_pickle=False)
     except (OSError, ValueError, EOFError) as exc:
-        raise InputError(f"input = {path} cannot be read as .npz ({type(exc).__name__}: {exc})") from None
+        raise InputError(
+            "input", Shown(str(path)), f"a file that can be read as .npz ({type(exc).__name__}: {exc})"
+        ) from None
     if not isinstance(loaded, np.lib.npyio.NpzFile):  # a plain .npy array under an .npz name
         raise InputError(
-            f"input = {path} is a single .npy array, not an .npz archive; allowed: an .npz file with named arrays "
-            "seat_acc, body_acc and dt (numpy.savez)"
+            "input",
+            Shown(str(path)),
+            "an .npz file with named arrays seat_acc, body_acc and dt (numpy.savez); it is a single .npy array, "
+            "not an .npz archive",
         )
     with loaded as z:
         arrays = {k: z[k] for k in z.files}
@@ -179,20 +194,23 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
     missing = [k for k in needed if k not in arrays]
     if missing:
         raise InputError(
-            f"input = {path} has no array {', '.join(missing)} (its arrays: {', '.join(arrays)}); "
-            "needed: seat_acc, body_acc, and dt or dt="
+            "input",
+            Shown(str(path)),
+            f"arrays seat_acc, body_acc, and dt or dt= (it has no array {', '.join(missing)}; its arrays: "
+            f"{', '.join(arrays)})",
         )
     for k in CHANNELS:
         a = arrays[k]
         if a.dtype.kind not in "fiu" or a.ndim not in (1, 2) or a.size == 0:
             raise InputError(
-                f"input = {path}: array {k} has dtype {a.dtype} and shape {a.shape}; allowed: real numbers "
-                "(a float or integer array, not bool or complex), 1-D (one recording) or 2-D (recordings, steps), "
-                "not empty"
+                f"input = {path}: array {k}",
+                Shown(f"dtype {a.dtype}, shape {a.shape}"),
+                "real numbers (a float or integer array, not bool or complex), 1-D (one recording) or 2-D "
+                "(recordings, steps), not empty",
             )
     if "dt" in arrays:
         a = arrays["dt"]
         if a.dtype.kind not in "fiu" or a.size != 1 or not (np.isfinite(a).all() and a.item() > 0):
-            raise InputError(f"input = {path}: array dt is {a.tolist()!r}; allowed: one number > 0 (seconds)")
+            raise InputError(f"input = {path}: array dt", a.tolist(), "one number > 0 (seconds)")
         dt = choose_dt(float(a.item()), dt, path, "the array dt")
     return Recordings(arrays["seat_acc"], arrays["body_acc"], dt)

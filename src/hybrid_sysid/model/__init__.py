@@ -1,15 +1,25 @@
-"""Parameter estimators (CNNs), training objectives (labelled, hybrid, combined), the LightningModule around them
-and the protocol every estimator meets (base.SplitPredictor)."""
+"""Parameter estimators (CNNs), training objectives (labelled, hybrid, combined), the LightningModule around them,
+what each of them provides (base: the Network, Objective and Baseline protocols) and the relative deviation (eq. 24,
+metrics). base, metrics and optim load no torch; the classes below load it when first named."""
 
-from hybrid_sysid.model.base import SplitPredictor
-from hybrid_sysid.model.networks import FastCNN, PaperCNN
-from hybrid_sysid.model.objectives import CombinedObjective, HybridObjective, LabelledObjective
+from hybrid_sysid.model.base import Baseline, Network, Objective, SplitPredictor
 
-__all__ = [
-    "CombinedObjective",
-    "FastCNN",
-    "HybridObjective",
-    "LabelledObjective",
-    "PaperCNN",
-    "SplitPredictor",
-]
+_LAZY = {
+    "FastCNN": "networks",
+    "PaperCNN": "networks",
+    "LabelledObjective": "objectives",
+    "HybridObjective": "objectives",
+    "CombinedObjective": "objectives",
+    "IdentificationModule": "module",
+}
+
+__all__ = ["Baseline", "Network", "Objective", "SplitPredictor", *_LAZY]
+
+
+def __getattr__(name):
+    # the report and the config's checks import model.metrics and model.base without torch
+    if name in _LAZY:
+        import importlib
+
+        return getattr(importlib.import_module(f"hybrid_sysid.model.{_LAZY[name]}"), name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

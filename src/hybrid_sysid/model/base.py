@@ -1,17 +1,83 @@
-"""What every estimator meets, a network's LightningModule and a baseline without a network alike: predictions
-and truth on a split's fixed evaluation windows (hybrid_sysid.training.evaluation scores them)."""
+"""What the rest of the package asks of a network, an objective and a baseline, declared here once.
+
+Each is a Protocol: a class meets it by having the members, without inheriting anything, so a class of one's own
+(a researcher's network, say) needs no import of this package's classes. ``lacks(cls, protocol)`` names the
+members a class does not have; the config layer refuses a ``_target_`` whose class lacks any (config/targets.py).
+docs/design.md ("Adding a network or an objective") shows a class of each kind.
+"""
 
 from __future__ import annotations
 
-from typing import Protocol, runtime_checkable
+from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
 
 @runtime_checkable
 class SplitPredictor(Protocol):
+    """What the evaluation asks of every estimator, a network's LightningModule and a baseline alike."""
+
     def predict_split(
         self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1
     ) -> tuple[np.ndarray, np.ndarray]:
         """(pred, true), float64 (recordings, 2): p1, p2 per recording of ``split`` (its first ``limit``) at noise
         std ``noise_std``, the prediction being the mean over ``windows`` = K fixed windows per recording."""
+
+
+class Network(Protocol):
+    """A torch module that maps windows (B, 2, W), channel 0 seat z'' and channel 1 body y'' in m/s^2, to (B, 2)
+    positive p = (p1, p2) in 1/s and 1/s^2."""
+
+    # the constructor's arguments that carry the prior of p (the config derives them: ${p_prior:...}), not the
+    # architecture: a trained network's weights load into a network built with other values of them
+    prior_arguments: ClassVar[tuple[str, ...]]
+
+    @staticmethod
+    def window_bounds(**arguments) -> tuple[int, int | None]:
+        """The shortest and the longest window (None: any) a network built with ``arguments`` reads."""
+
+    def output_bounds(self) -> tuple[np.ndarray, np.ndarray] | None:
+        """The lowest and highest p (two arrays of 2) its head can give, as its weights hold them; None when the
+        head is unbounded."""
+
+    def __call__(self, signals): ...
+
+
+class Objective(Protocol):
+    """A torch module ``loss = objective(pred, batch)``: pred (B, 2) p in physical units, batch the data module's
+    dict (hybrid_sysid.data.windows: "signals", "params", "rel_vel", "rel_disp" and, with ``fir``, "seat_f",
+    "rel_vel_f", "rel_disp_f")."""
+
+    uses_labels: bool  # whether it reads batch["params"]; a label-free objective never does
+    fir: np.ndarray | None  # the band-pass taps the batches must carry filtered signals through (None: none)
+    monitor: str  # its model-selection figure under trainer.monitor=auto: val/rel_dev reads labels, val/loss not
+
+    def __call__(self, pred, batch): ...
+
+
+class Baseline(SplitPredictor, Protocol):
+    """An estimator without a network (baseline=): evaluated like one, and an estimator of recordings."""
+
+    fit_seconds: float  # the time its fits took so far: a baseline's only work, its run's train_seconds
+
+    def check_lengths(self, window: int, n_steps: int) -> None:
+        """ConfigError when what it filters (a window, or a whole recording) is too short for it."""
+
+    def estimate(self, seat, body, dt: float, measurement: str, window: int, windows: int) -> np.ndarray:
+        """(K, 2) estimates of one recording (float64 arrays in m/s^2 at the step ``dt``): per window, at
+        ``windows`` = K evenly spaced starts, or one estimate of the whole recording."""
+
+
+def members(protocol: type) -> list[str]:
+    """The names a class must have to meet ``protocol`` (one of this module's), in the order they are declared."""
+    names = []
+    for base in reversed(protocol.__mro__):
+        if base.__module__ == __name__:
+            declared = [*getattr(base, "__annotations__", {}), *vars(base)]
+            names += [n for n in declared if not n.startswith("_") or n == "__call__"]
+    return list(dict.fromkeys(names))
+
+
+def lacks(cls, protocol: type) -> list[str]:
+    """The members of ``protocol`` that ``cls`` (a class, or an object) does not have."""
+    return [name for name in members(protocol) if not hasattr(cls, name)]

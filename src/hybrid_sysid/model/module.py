@@ -2,16 +2,15 @@
 
 from __future__ import annotations
 
-import math
-
 import lightning as L
 import numpy as np
 import torch
 from torch import nn
 
 from hybrid_sysid.core import stop
-from hybrid_sysid.core.options import OPTIMIZERS, SCHEDULES
+from hybrid_sysid.core.options import OPTIMIZERS
 from hybrid_sysid.model.metrics import relative_deviation
+from hybrid_sysid.model.optim import OptimSettings
 
 LOG_EVERY = 50  # steps between progress-bar updates of the training loss
 
@@ -38,12 +37,7 @@ class IdentificationModule(L.LightningModule):
         warmup_fraction: float = 0.3,
     ):
         super().__init__()
-        if optimizer not in OPTIMIZERS:
-            raise ValueError(f"model.optim.name = {optimizer!r} is unknown; allowed: {', '.join(OPTIMIZERS)}")
-        if not lr > 0:
-            raise ValueError(f"model.optim.lr = {lr} is not allowed: must be > 0")
-        if schedule not in SCHEDULES:
-            raise ValueError(f"model.optim.schedule = {schedule!r} is unknown; allowed: {', '.join(SCHEDULES)}")
+        OptimSettings(optimizer, lr, weight_decay, schedule, warmup_fraction).validate()
         # only plain values in the hyperparameters, so checkpoints load with torch's weights_only default
         self.save_hyperparameters(ignore=["net", "objective"])
         self.net, self.objective = net, objective
@@ -105,12 +99,7 @@ class IdentificationModule(L.LightningModule):
         opt = getattr(torch.optim, OPTIMIZERS[hp.optimizer])(self.parameters(), lr=hp.lr, weight_decay=hp.weight_decay)
         if hp.schedule == "constant":
             return opt
-        if hp.schedule == "onecycle":
-            sched = torch.optim.lr_scheduler.OneCycleLR(
-                opt, max_lr=hp.lr, total_steps=max(hp.max_steps, 2), pct_start=hp.warmup_fraction
-            )
-        else:
-            sched = torch.optim.lr_scheduler.LambdaLR(
-                opt, lambda s: 0.5 * (1 + math.cos(math.pi * min(s, hp.max_steps) / max(hp.max_steps, 1)))
-            )
+        sched = torch.optim.lr_scheduler.OneCycleLR(
+            opt, max_lr=hp.lr, total_steps=max(hp.max_steps, 2), pct_start=hp.warmup_fraction
+        )
         return {"optimizer": opt, "lr_scheduler": {"scheduler": sched, "interval": "step"}}

@@ -8,13 +8,13 @@ prior of p = (C3, K3) / m3 (the car's and the seat masses' range): the run's con
 
 from __future__ import annotations
 
-import math
 from typing import Sequence
 
+import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.core.checks import check_int, check_pair
+from hybrid_sysid.core.checks import bad, check_choice, check_int, check_number, check_pair
 from hybrid_sysid.core.options import ACTIVATIONS, DOWNSAMPLES
 
 
@@ -30,17 +30,18 @@ class PaperCNN(nn.Module):
     leaves open").
     """
 
-    def __init__(self, p_scale: Sequence[float], window: int = 500, in_channels: int = 2, activation: str = "tanh"):
+    prior_arguments = ("p_scale",)
+    SHORTEST = 59  # both 'valid' convolutions need 50 + 10 - 1 samples
+
+    def __init__(self, p_scale: Sequence[float], window: int = 500, activation: str = "tanh"):
         super().__init__()
-        window = check_int("window", window, self.shortest_window())
-        in_channels = check_int("in_channels", in_channels, 1)
-        if activation not in ACTIVATIONS:
-            raise ValueError(f"activation = {activation!r} is unknown; allowed: {', '.join(ACTIVATIONS)}")
+        window = check_int("window", window, self.SHORTEST)
+        check_choice("activation", activation, ACTIVATIONS)
         self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
         act = getattr(nn, ACTIVATIONS[activation])
         flat = 100 * (window - 50 + 1 - 10 + 1)
         self.net = nn.Sequential(
-            nn.Conv1d(in_channels, 100, kernel_size=50),
+            nn.Conv1d(2, 100, kernel_size=50),  # seat, body
             nn.Tanh(),
             nn.Conv1d(100, 100, kernel_size=10),
             act(),
@@ -53,9 +54,13 @@ class PaperCNN(nn.Module):
         )
 
     @staticmethod
-    def shortest_window(**arguments) -> int:
-        """The shortest window it reads: both 'valid' convolutions need 50 + 10 - 1 samples."""
-        return 59
+    def window_bounds(window: int = 500, **arguments) -> tuple[int, int | None]:
+        """It reads windows of its ``window`` steps alone: the flattened features size its first dense layer."""
+        return window, window
+
+    def output_bounds(self) -> None:
+        """None: the absolute-value head is unbounded."""
+        return None
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         return self.net(signals).abs() * self.p_scale
@@ -72,6 +77,8 @@ class FastCNN(nn.Module):
     not at the sigmoid's flat ends. A bounded head starts every prediction inside the prior, which keeps the
     hybrid objective sane from step 0; log scaling matches p ~ 1/m3 and the relative-deviation metric.
 
+    The network reads two channels, seat and body (the difference needs both).
+
     The defaults (32 channels, kernel 9) were chosen for accuracy per CPU second of training on data=default:
     more channels cost more per step than they gained. ``downsample="stride"`` (a stride-2 convolution) halves
     the sequence in each layer instead of a stride-1 convolution followed by MaxPool(2) (``"pool"``): it computes
@@ -82,44 +89,37 @@ class FastCNN(nn.Module):
     batches.
     """
 
+    prior_arguments = ("p_min", "p_max")
+
     def __init__(
         self,
         p_min: Sequence[float],
         p_max: Sequence[float],
-        in_channels: int = 2,
         channels: int = 32,
         n_layers: int = 4,
         kernel_size: int = 9,
         margin: float = 0.1,
-        diff_channel: bool = True,
         bn_momentum: float = 0.01,
         downsample: str = "stride",
     ):
         super().__init__()
-        in_channels = check_int("in_channels", in_channels, 1)
         channels = check_int("channels", channels, 1)
         n_layers = check_int("n_layers", n_layers, 1)
         kernel_size = check_int("kernel_size", kernel_size, 1)
         if kernel_size % 2 == 0:
-            raise ValueError(f"kernel_size = {kernel_size} is invalid; it must be odd (for 'same' padding)")
-        if not (math.isfinite(margin) and 0 <= margin <= 1):
-            raise ValueError(f"margin = {margin} is invalid; it must be in [0, 1]")
-        if not (math.isfinite(bn_momentum) and 0 < bn_momentum <= 1):
-            raise ValueError(f"bn_momentum = {bn_momentum} is invalid; it must be in (0, 1]")
-        if downsample not in DOWNSAMPLES:
-            raise ValueError(f"downsample = {downsample!r} is unknown; allowed: {', '.join(DOWNSAMPLES)}")
-        if diff_channel and in_channels != 2:
-            raise ValueError(f"in_channels = {in_channels} is invalid with diff_channel=True; it must be 2")
+            bad("kernel_size", kernel_size, "an odd integer (for 'same' padding)")
+        check_number("margin", margin, 0, 1)
+        check_number("bn_momentum", bn_momentum, 0, 1, low_open=True)
+        check_choice("downsample", downsample, DOWNSAMPLES)
         lo, hi = check_pair("p_min", p_min), check_pair("p_max", p_max)
         if not all(a < b for a, b in zip(lo, hi)):
-            raise ValueError(f"p_min = {p_min} must be below p_max = {p_max} for each parameter")
+            bad("p_max", list(p_max), f"above p_min = {list(p_min)} for each parameter")
         log_lo, log_hi = torch.tensor(lo).log(), torch.tensor(hi).log()
         pad = margin * (log_hi - log_lo)
         self.register_buffer("log_lo", log_lo - pad)
         self.register_buffer("log_span", (log_hi - log_lo) + 2 * pad)
-        self.diff_channel = bool(diff_channel)
 
-        layers, c_in = [], in_channels + int(self.diff_channel)
+        layers, c_in = [], 3  # seat, body and their difference
         stride = 2 if downsample == "stride" else 1
         for _ in range(n_layers):
             layers += [
@@ -134,15 +134,19 @@ class FastCNN(nn.Module):
         self.head = nn.Linear(channels, 2)
 
     @staticmethod
-    def shortest_window(n_layers: int = 4, **arguments) -> int:
-        """The shortest window it reads: each layer halves the sequence, which must keep a sample."""
-        return 2 ** int(n_layers)
+    def window_bounds(n_layers: int = 4, **arguments) -> tuple[int, None]:
+        """Any window of at least 2^n_layers steps: each layer halves the sequence, which must keep a sample."""
+        return 2 ** int(n_layers), None
+
+    def output_bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        """The head's range: the prior widened by ``margin`` (its buffers, so a loaded network's own)."""
+        log_lo, log_span = self.log_lo.double().cpu().numpy(), self.log_span.double().cpu().numpy()
+        return np.exp(log_lo), np.exp(log_lo + log_span)
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         # per-window scale from the body channel; the floor only guards an all-zero (parked) window
         rms = signals[:, 1:2].pow(2).mean(dim=-1, keepdim=True).sqrt().clamp_min(1e-8)
         x = signals / rms
-        if self.diff_channel:
-            x = torch.cat([x, x[:, :1] - x[:, 1:2]], dim=1)
+        x = torch.cat([x, x[:, :1] - x[:, 1:2]], dim=1)
         h = self.features(x).mean(dim=-1)
         return torch.exp(self.log_lo + self.log_span * torch.sigmoid(self.head(h)))

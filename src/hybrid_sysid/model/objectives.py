@@ -8,17 +8,22 @@ data.integration=window); with a filter, "seat_f", "rel_vel_f", "rel_disp_f": th
 
 from __future__ import annotations
 
-import math
 from typing import Sequence
 
 import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.core.checks import check_pair, format_value
-from hybrid_sysid.core.options import NORMS, TARGETS, WEIGHTINGS
+from hybrid_sysid.core.checks import ConfigError, bad, check_choice, check_number, check_pair
+from hybrid_sysid.core.options import TARGETS, WEIGHTINGS
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import filter_taps
+
+# model selection under trainer.monitor=auto: the labelled relative deviation, or the objective's own loss on the
+# validation windows, which keeps a label-free run label-free
+LABELLED, LABEL_FREE = "val/rel_dev", "val/loss"
+EPS = 1e-12  # guards the normalisation of an all-zero (parked) window
+RIDGE = 1e-9  # the least-squares target's relative ridge: a window of no motion stays finite
 
 
 def noise_gram(fir: np.ndarray, dt: float, measurement: str) -> np.ndarray:
@@ -46,23 +51,19 @@ class LabelledObjective(nn.Module):
 
     Scaling puts p1 (~8) and p2 (~1200) on one footing; unscaled, p2 alone would drive the gradient. The run's
     config passes the midpoint of the prior of p (``${p_prior:scale}``, hybrid_sysid.config).
-    ``norm="l2"`` (squared error) is offered as an alternative; the paper's is l1.
     """
 
-    uses_labels = True  # model selection may then use the labelled val/rel_dev (trainer.monitor=auto)
+    uses_labels = True
+    monitor = LABELLED
     fir = None  # no band-pass: the data module adds no filtered signals to the batches
 
-    def __init__(self, p_scale: Sequence[float], norm: str = "l1"):
+    def __init__(self, p_scale: Sequence[float]):
         super().__init__()
-        if norm not in NORMS:
-            raise ValueError(f"norm = {norm!r} is unknown; allowed: {', '.join(NORMS)}")
-        self.norm = norm
         self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         err = (pred - batch["params"].to(pred)) / self.p_scale
-        err = err.abs() if self.norm == "l1" else err.pow(2)
-        return err.sum(dim=1).mean()
+        return err.abs().sum(dim=1).mean()
 
 
 class HybridObjective(nn.Module):
@@ -72,7 +73,7 @@ class HybridObjective(nn.Module):
     Per sample the mean squared residual over the window; with ``normalize`` it is divided by that window's
     mean squared seat acceleration, i.e. the loss becomes 1 - R^2-like and scale-free. Without it a class E
     window (16x the road amplitude of class A, 256x the squared error) would outweigh class A windows by
-    orders of magnitude and the network would learn only from rough roads. ``eps`` guards all-zero windows.
+    orders of magnitude and the network would learn only from rough roads. EPS guards all-zero windows.
 
     ``filter`` ({low_hz, high_hz, taps}, the band-pass of the least-squares baseline; needs the data's ``dt``):
     the residual of the three signals through that zero-phase band-pass (the batch's "seat_f", "rel_vel_f",
@@ -91,57 +92,46 @@ class HybridObjective(nn.Module):
     residual is (p - p*) . (rel_vel, rel_disp), so the loss is dp^T G dp with G the regressors' 2 x 2 Gram
     matrix, and G makes a relative error in p2 cost about a hundred times what the same error in p1 costs: the
     network learns p1 poorly. ``least_squares`` takes the minimiser of the same residual per window instead,
-    p_ls = G^-1 b (float64, no gradient through it, a relative ridge ``ridge``), and fits p to it as the
+    p_ls = G^-1 b (float64, no gradient through it, a relative ridge RIDGE), and fits p to it as the
     labelled objective fits p to the labels: mean L1 of (p - p_ls) / ``p_scale``, equal weight for both. Still
     no labels: p_ls comes from the signals alone. ``whitened``: (p - p_ls) / p_scale in the metric of the
     regressors' correlation (G scaled to a unit diagonal), which keeps their coupling and drops their scales.
     """
 
-    uses_labels = False  # model selection then stays label-free too (trainer.monitor=auto picks val/loss)
+    uses_labels = False
+    monitor = LABEL_FREE
+    fir: np.ndarray | None = None  # the band-pass taps (float64) with a filter (set below)
 
     def __init__(
         self,
         normalize: bool = True,
-        eps: float = 1e-12,
         filter: dict | None = None,
         weighting: str = "none",
         dt: float | None = None,
         measurement: str = "consistent",
         target: str = "residual",
         p_scale: Sequence[float] | None = None,
-        ridge: float = 1e-9,
     ):
         super().__init__()
-        if not (math.isfinite(eps) and eps >= 0):
-            raise ValueError(f"eps = {eps} is invalid; it must be finite and >= 0")
-        if target not in TARGETS:
-            raise ValueError(f"objective.target = {target!r} is not allowed: one of {', '.join(TARGETS)}")
+        check_choice("target", target, TARGETS)
+        check_choice("weighting", weighting, WEIGHTINGS)
         if target != "residual" and p_scale is None:
-            raise ValueError(f"objective.p_scale is missing: target = {target!r} needs it (${{p_prior:scale}})")
+            raise ConfigError("p_scale", missing=True, allowed=f"target = {target!r} needs it (${{p_prior:scale}})")
         if target != "residual" and weighting != "none":
-            raise ValueError(f"objective.weighting = {weighting!r} is not allowed with target = {target!r}: none")
-        if not (math.isfinite(ridge) and 0 <= ridge < 1):
-            raise ValueError(f"objective.ridge = {ridge} is not allowed: finite, >= 0 and < 1")
-        self.target, self.ridge = target, float(ridge)
+            bad("weighting", weighting, f"none with target = {target!r}")
+        self.target = target
         if p_scale is not None:
             self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
-        if weighting not in WEIGHTINGS:
-            raise ValueError(f"objective.weighting = {weighting!r} is not allowed: one of {', '.join(WEIGHTINGS)}")
         if weighting == "eiv" and filter is None:
-            raise ValueError(
-                "objective.weighting = 'eiv' is not allowed without objective.filter "
-                "(unfiltered, integrated noise has no finite variance)"
-            )
+            bad("weighting", weighting, "none without a filter (unfiltered, integrated noise has no finite variance)")
         self.normalize = bool(normalize)
-        self.eps = float(eps)
         self.filter, self.weighting = (dict(filter) if filter is not None else None), weighting
         self.keys = ("seat_f", "rel_vel_f", "rel_disp_f") if filter is not None else ("rel_vel", "rel_disp")
-        # the band-pass taps (float64) the data module filters the batches with (hybrid_sysid.training.build),
-        # so the batches always carry what this objective reads; None without a filter
-        self.fir: np.ndarray | None = None
+        # the band-pass taps the data module filters the batches with (hybrid_sysid.training.build), so the
+        # batches always carry what this objective reads
         if filter is not None:
             if dt is None:
-                raise ValueError("objective.dt is missing: a filtered objective needs the data's step (${data.dt})")
+                raise ConfigError("dt", missing=True, allowed="a filtered objective needs the data's step (${data.dt})")
             self.fir = filter_taps(self.filter, dt)
             if weighting == "eiv":
                 self.register_buffer("gram", torch.tensor(noise_gram(self.fir, dt, measurement), dtype=torch.float32))
@@ -150,7 +140,7 @@ class HybridObjective(nn.Module):
         if self.filter is not None:
             if "seat_f" not in batch:
                 raise KeyError(
-                    "objective.filter is set but the batch has no filtered signals: build the data "
+                    "the objective has a filter but the batch has no filtered signals: build the data "
                     "module with the objective's fir (hybrid_sysid.training.build.build_datamodule does)"
                 )
             seat, rel_vel, rel_disp = (batch[k].to(pred) for k in self.keys)
@@ -165,11 +155,11 @@ class HybridObjective(nn.Module):
             p = torch.cat([torch.ones_like(pred[:, :1]), pred], dim=1)
             mse = mse / torch.einsum("bi,ij,bj->b", p, self.gram, p)
         if self.normalize:
-            mse = mse / (seat.pow(2).mean(dim=1) + self.eps)
+            mse = mse / (seat.pow(2).mean(dim=1) + EPS)
         return mse.mean()
 
     def _to_least_squares(self, pred, seat, rel_vel, rel_disp) -> torch.Tensor:
-        p_ls, gram = least_squares_target(seat, rel_vel, rel_disp, self.ridge)
+        p_ls, gram = least_squares_target(seat, rel_vel, rel_disp)
         err = (pred - p_ls.to(pred)) / self.p_scale
         if self.target == "least_squares":
             return err.abs().sum(dim=1).mean()
@@ -179,7 +169,7 @@ class HybridObjective(nn.Module):
 
 
 @torch.no_grad()
-def least_squares_target(seat, rel_vel, rel_disp, ridge: float = 1e-9) -> tuple[torch.Tensor, torch.Tensor]:
+def least_squares_target(seat, rel_vel, rel_disp, ridge: float = RIDGE) -> tuple[torch.Tensor, torch.Tensor]:
     """Per window, the p that minimises the residual seat + p1 rel_vel + p2 rel_disp over the window, in float64:
     (p_ls (B, 2), G (B, 2, 2)), G = A^T A with A = (rel_vel, rel_disp), p_ls = -G^-1 A^T seat. G's diagonal grows
     by ``ridge`` times itself (a ridge in each regressor's own scale, which differ about a thousandfold), so a
@@ -194,36 +184,35 @@ def least_squares_target(seat, rel_vel, rel_disp, ridge: float = 1e-9) -> tuple[
 class CombinedObjective(nn.Module):
     """labelled_weight * J_L + hybrid_weight * J_U; other keyword arguments go to the two objectives."""
 
+    # what the interface asks of the class (model.base.Objective); an instance sets its own from its weights
+    uses_labels = True
+    monitor = LABELLED
+    fir: np.ndarray | None = None
+
     def __init__(
         self,
         p_scale: Sequence[float],
         labelled_weight: float = 1.0,
         hybrid_weight: float = 1.0,
-        norm: str = "l1",
         normalize: bool = True,
-        eps: float = 1e-12,
         filter: dict | None = None,
         weighting: str = "none",
         dt: float | None = None,
         measurement: str = "consistent",
     ):
         super().__init__()
-        for name, w in (("labelled_weight", labelled_weight), ("hybrid_weight", hybrid_weight)):
-            if not (math.isfinite(w) and w >= 0):
-                raise ValueError(f"objective.{name} = {w} is not allowed: must be finite and >= 0")
+        check_number("labelled_weight", labelled_weight, 0)
+        check_number("hybrid_weight", hybrid_weight, 0)
         if labelled_weight == 0 and hybrid_weight == 0:
-            raise ValueError(
-                f"objective.labelled_weight / objective.hybrid_weight = [{format_value(labelled_weight)}, "
-                f"{format_value(hybrid_weight)}] is not allowed: labelled_weight and hybrid_weight must "
-                "not both be zero"
-            )
+            bad("hybrid_weight", hybrid_weight, "labelled_weight and hybrid_weight must not both be zero")
         self.labelled_weight, self.hybrid_weight = float(labelled_weight), float(hybrid_weight)
-        self.labelled = LabelledObjective(p_scale=p_scale, norm=norm)
+        self.labelled = LabelledObjective(p_scale=p_scale)
         self.hybrid = HybridObjective(
-            normalize=normalize, eps=eps, filter=filter, weighting=weighting, dt=dt, measurement=measurement
+            normalize=normalize, filter=filter, weighting=weighting, dt=dt, measurement=measurement
         )
         # with labelled_weight 0 the combination is label-free, and model selection must stay so too
         self.uses_labels = self.labelled_weight > 0
+        self.monitor = LABELLED if self.uses_labels else LABEL_FREE
         self.fir = self.hybrid.fir
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:

@@ -3,12 +3,10 @@
 The compiled dataset kernel is ``hybrid_sysid.physics.compiled``, imported only by ``hybrid_sysid.data``.
 """
 
+from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED
 from hybrid_sysid.physics.exact import continuous_recordings, expm
 from hybrid_sysid.physics.integrate import integrate, integrate_trapezoid, relative_states
 from hybrid_sysid.physics.quarter_car import (
-    DEFAULT_MEASUREMENT,
-    MEASUREMENTS,
-    STEPPED,
     Coefficients,
     QuarterCar,
     seat_car,
@@ -17,7 +15,6 @@ from hybrid_sysid.physics.quarter_car import (
     step,
 )
 from hybrid_sysid.physics.road import (
-    ROAD_CLASSES,
     road_amplitudes,
     road_phases,
     road_profiles,

@@ -14,14 +14,9 @@ from __future__ import annotations
 import numba
 import numpy as np
 
-from hybrid_sysid.physics.quarter_car import (
-    DEFAULT_MEASUREMENT,
-    Coefficients,
-    QuarterCar,
-    check_measurement,
-    seat_car,
-    step,
-)
+from hybrid_sysid.core.checks import bad, check_choice
+from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, STEPPED
+from hybrid_sysid.physics.quarter_car import Coefficients, QuarterCar, seat_car, step
 
 step_inline = numba.njit(inline="always")(step)
 
@@ -136,7 +131,6 @@ def simulate_recordings(
     by ``relative_states`` gives, in float32 unless ``out`` passes four C-contiguous arrays to fill, all
     float32 or all float64.
     """
-    check_measurement(measurement)
     roads = np.ascontiguousarray(roads, dtype=np.float64)
     m3 = np.asarray(m3, dtype=np.float64)
     car = seat_car(car, len(m3), c3, k3)
@@ -152,15 +146,12 @@ def simulate_recordings(
         or not a.flags.c_contiguous
         for a in out
     ):
-        raise ValueError(
-            f"out must be four C-contiguous float32 or float64 arrays of one dtype, shape "
-            f"({n}, {n_steps}); got {[(a.dtype.name, a.shape) for a in out]}"
+        bad(
+            "out",
+            [(a.dtype.name, a.shape) for a in out],
+            f"four C-contiguous float32 or float64 arrays of one dtype, shape ({n}, {n_steps})",
         )
-    if measurement not in ("paper", "consistent"):
-        raise ValueError(
-            f"measurement = {measurement!r}: the kernel steps eq. 11 (paper, consistent); "
-            "continuous recordings come from physics.exact"
-        )
+    check_choice("measurement", measurement, STEPPED)  # continuous recordings come from physics.exact
     coefs = np.ascontiguousarray(np.stack(np.broadcast_arrays(*car.coefficients(), p1), axis=1)[:, :-1])
     kernel(
         roads,

@@ -18,18 +18,13 @@ import numbers
 
 import numpy as np
 
-from hybrid_sysid.core.checks import format_value
+from hybrid_sysid.core.checks import ConfigError, bad, check_positive
 from hybrid_sysid.core.options import FILTER_KEYS
 
 
-def check_bandpass(low_hz, high_hz, taps, dt, prefix: str = "baseline") -> None:
-    """Raise ValueError naming the key, the value and what is allowed."""
-
-    def bad(key, value, allowed):
-        raise ValueError(f"{prefix}.{key} = {format_value(value)} is not allowed: {allowed}")
-
-    if not isinstance(dt, numbers.Real) or not dt > 0:
-        bad("dt", dt, "must be > 0 (seconds; the data's time step)")
+def check_bandpass(low_hz, high_hz, taps, dt) -> None:
+    """ConfigError naming the argument, the value and what is allowed."""
+    check_positive("dt", dt, "seconds; the data's time step")
     nyquist = 0.5 / dt
     if not isinstance(taps, numbers.Integral) or isinstance(taps, bool) or taps < 3 or taps % 2 == 0:
         bad("taps", taps, "must be an odd integer >= 3 (a symmetric, zero-phase FIR)")
@@ -62,11 +57,18 @@ def filter_taps(filter: dict, dt: float) -> np.ndarray:
     """The band-pass of ``objective.filter`` ({low_hz, high_hz, taps}) at the data's dt: the baseline's FIR."""
     unknown = sorted(set(filter) - set(FILTER_KEYS))
     if unknown:
-        raise ValueError(f"objective.filter.{unknown[0]} is not allowed: the keys are {', '.join(FILTER_KEYS)}")
+        bad(
+            f"filter.{unknown[0]}",
+            filter[unknown[0]],
+            f"not a key of a filter, whose keys are {', '.join(FILTER_KEYS)}",
+        )
     missing = [k for k in FILTER_KEYS if k not in filter]
     if missing:
-        raise ValueError(f"objective.filter.{missing[0]} is missing: give {', '.join(FILTER_KEYS)}")
-    check_bandpass(filter["low_hz"], filter["high_hz"], filter["taps"], dt, prefix="objective.filter")
+        raise ConfigError(f"filter.{missing[0]}", missing=True, allowed=f"give {', '.join(FILTER_KEYS)}")
+    try:
+        check_bandpass(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
+    except ConfigError as exc:
+        raise exc.under("filter") from None
     return bandpass_taps(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
 
 
@@ -77,7 +79,7 @@ def fir_valid(x: np.ndarray, h: np.ndarray) -> np.ndarray:
     h = np.asarray(h, dtype=np.float64)
     t, taps = x.shape[-1], len(h)
     if taps > t:
-        raise ValueError(f"a filter of {taps} taps does not fit a signal of {t} samples")
+        bad("taps", taps, f"must be at most the {t} samples of the signal it filters")
     n = 1 << int(np.ceil(np.log2(t + taps - 1)))  # no circular wrap-around
     y = np.fft.irfft(np.fft.rfft(x, n, axis=-1) * np.fft.rfft(h, n), n, axis=-1)
     return y[..., taps - 1 : t]

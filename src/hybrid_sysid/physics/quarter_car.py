@@ -7,19 +7,19 @@ from typing import NamedTuple
 
 import numpy as np
 
-# What a recording holds as the two sensors' accelerations: "paper" is eq. 12 from the states at step k,
-# "consistent" what the integrator applied. Re-integrating "paper" recordings does not give the simulated states
-# back, which biases the hybrid objective (docs/design.md, "The hybrid objective and the discretisation").
-# "continuous" samples the exact solution of eq. 10 every dt, as an accelerometer would (physics.exact): no
-# discrete scheme reproduces it, so it is the honest target for a network trained on simulated data.
-MEASUREMENTS = ("paper", "consistent", "continuous")
-STEPPED = ("paper", "consistent")  # the measurements recorded from the eq.-11 step
-DEFAULT_MEASUREMENT = "consistent"
+from hybrid_sysid.core.checks import bad, check_choice, check_positive
+from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, STEPPED
+
+# What a recording holds as the two sensors' accelerations (core.options.MEASUREMENTS): "paper" is eq. 12 from the
+# states at step k, "consistent" what the integrator applied. Re-integrating "paper" recordings does not give the
+# simulated states back, which biases the hybrid objective (docs/design.md, "The hybrid objective and the
+# discretisation"). "continuous" samples the exact solution of eq. 10 every dt, as an accelerometer would
+# (physics.exact): no discrete scheme reproduces it, so it is the honest target for a network trained on simulated
+# data.
 
 
 def check_measurement(measurement: str) -> None:
-    if measurement not in MEASUREMENTS:
-        raise ValueError(f"measurement = {measurement!r} is unknown; allowed: {', '.join(MEASUREMENTS)}")
+    check_choice("measurement", measurement, MEASUREMENTS)
 
 
 class Coefficients(NamedTuple):
@@ -55,7 +55,7 @@ class QuarterCar:
         """The unknowns (p1, p2) = (C3 / m3, K3 / m3); works on scalars and arrays alike."""
         m3 = np.asarray(m3, dtype=float)
         if np.any(m3 <= 0):
-            raise ValueError(f"m3 must be > 0 kg, got min {m3.min()}")
+            bad("m3", float(m3.min()), "masses > 0 kg")
         return self.c3 / m3, self.k3 / m3
 
     def describe(self) -> str:
@@ -126,7 +126,7 @@ def seat_car(car: QuarterCar, n: int, c3=None, k3=None) -> QuarterCar:
         if given is not None:
             given = np.asarray(given, dtype=float)
             if given.shape != (n,) or not np.all(given > 0):
-                raise ValueError(f"{name} must hold {n} values > 0, one per recording; got shape {given.shape}")
+                bad(name, f"an array of shape {given.shape}", f"{n} values > 0, one per recording")
             values[name] = given
     return replace(car, **values) if values else car
 
@@ -186,14 +186,8 @@ def simulate(
     return_states=True adds a third item: a dict of the states at steps 0..n_steps-1, keys "u", "v", "w"
     (wheel, body, seat velocity) and "x", "y", "z" (positions), for checks against other solvers.
     """
-    check_measurement(measurement)
-    if measurement not in STEPPED:
-        raise ValueError(
-            f"measurement = {measurement!r}: simulate steps eq. 11 ({', '.join(STEPPED)}); "
-            "continuous recordings come from physics.exact"
-        )
-    if not dt > 0:
-        raise ValueError(f"dt = {dt} must be > 0")
+    check_choice("measurement", measurement, STEPPED)  # continuous recordings come from physics.exact
+    check_positive("dt", dt, "seconds")
     road = np.asarray(road, dtype=float)
     p1, p2 = car.parameters(m3)
     batch = np.broadcast_shapes(road.shape[:-1], np.shape(p1))

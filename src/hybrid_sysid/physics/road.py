@@ -11,26 +11,26 @@ from typing import Sequence
 
 import numpy as np
 
-ROAD_CLASSES = "ABCDE"
+from hybrid_sysid.core.checks import bad, check_int, check_positive
+from hybrid_sysid.core.options import ROAD_CLASSES
+
 _CLASS_EXPONENT = {c: 2 * i for i, c in enumerate(ROAD_CLASSES)}  # A: k=0 ... E: k=8
 OMEGA_0 = 1.0
 OMEGA_1 = 0.02 * np.pi
 OMEGA_M = 6.0 * np.pi
-AMPLITUDE_FORMS = ("paper", "iso")
 
 
 def _check_classes(road_classes: Sequence[str]) -> list[str]:
     classes = list(road_classes)
-    bad = sorted({c for c in classes if c not in _CLASS_EXPONENT})
-    if bad:
-        raise ValueError(f"road class {bad[0]!r} is unknown; allowed classes are {', '.join(ROAD_CLASSES)}")
+    unknown = sorted({c for c in classes if c not in _CLASS_EXPONENT})
+    if unknown:
+        bad("road_classes", unknown[0], f"each class one of {', '.join(ROAD_CLASSES)}")
     return classes
 
 
 def wave_numbers(n_waves: int = 300) -> np.ndarray:
     """The paper's w_i = w1 + (i - 1) dw, i = 1..M, dw = (wM - w1) / (M - 1), in rad/m."""
-    if n_waves < 2:
-        raise ValueError(f"n_waves = {n_waves} is too small; it must be at least 2")
+    check_int("n_waves", n_waves, 2)
     return np.linspace(OMEGA_1, OMEGA_M, n_waves)
 
 
@@ -40,24 +40,19 @@ def class_psd(road_class: str) -> float:
     return 2.0 ** _CLASS_EXPONENT[c] * 1e-6
 
 
-def wave_amplitudes(road_class: str, n_waves: int = 300, amplitude: str = "paper") -> np.ndarray:
-    """A_i for one class.
-
-    ``"paper"`` is eq. 3, sqrt(Phi dw / pi); ``"iso"`` is the common sqrt(2 Phi dw), whose road RMS is
-    sqrt(2 pi) ~ 2.5 times larger.
-    """
-    if amplitude not in AMPLITUDE_FORMS:
-        raise ValueError(f"amplitude = {amplitude!r} is unknown; allowed: {', '.join(AMPLITUDE_FORMS)}")
+def wave_amplitudes(road_class: str, n_waves: int = 300) -> np.ndarray:
+    """A_i for one class: eq. 3, sqrt(Phi dw / pi). (The form common elsewhere, sqrt(2 Phi dw), gives a road RMS
+    sqrt(2 pi), about 2.5 times, larger: docs/design.md, "Road".)"""
     w = wave_numbers(n_waves)
     dw = w[1] - w[0]
     phi = class_psd(road_class) * (w / OMEGA_0) ** -2
-    return np.sqrt(phi * dw / np.pi) if amplitude == "paper" else np.sqrt(2.0 * phi * dw)
+    return np.sqrt(phi * dw / np.pi)
 
 
-def road_amplitudes(road_classes: Sequence[str], n_waves: int = 300, amplitude: str = "paper") -> np.ndarray:
+def road_amplitudes(road_classes: Sequence[str], n_waves: int = 300) -> np.ndarray:
     """A_i of every road, (n_roads, n_waves), one road per class letter."""
     classes = _check_classes(road_classes)
-    return np.stack([wave_amplitudes(c, n_waves, amplitude) for c in classes]) if classes else np.empty((0, n_waves))
+    return np.stack([wave_amplitudes(c, n_waves) for c in classes]) if classes else np.empty((0, n_waves))
 
 
 def road_phases(n_roads: int, n_waves: int, rng: np.random.Generator) -> np.ndarray:
@@ -71,7 +66,6 @@ def road_profiles(
     dt: float,
     speed: float,
     n_waves: int = 300,
-    amplitude: str = "paper",
     rng: np.random.Generator | int | None = None,
 ) -> np.ndarray:
     """Road displacement r(t_k), t_k = k dt, s = speed * t, one road per class letter: (n_roads, n_steps).
@@ -80,16 +74,13 @@ def road_profiles(
     (steps, waves), so sin(w s - phi) = sin(w s) cos(phi) - cos(w s) sin(phi) becomes two matrix products.
     """
     classes = _check_classes(road_classes)
-    if n_steps < 1:
-        raise ValueError(f"n_steps = {n_steps} must be at least 1")
-    if not dt > 0:
-        raise ValueError(f"dt = {dt} must be > 0")
-    if not speed > 0:
-        raise ValueError(f"speed = {speed} must be > 0")
+    check_int("n_steps", n_steps, 1)
+    check_positive("dt", dt, "seconds")
+    check_positive("speed", speed, "m/s")
     rng = np.random.default_rng(rng)
     phases = road_phases(len(classes), n_waves, rng)
 
-    base = wave_amplitudes("A", n_waves, amplitude)  # class A; each class step doubles the amplitude
+    base = wave_amplitudes("A", n_waves)  # class A; each class step doubles the amplitude
     scale = np.array([2.0 ** (_CLASS_EXPONENT[c] / 2) for c in classes])
     s = speed * dt * np.arange(n_steps)
     arg = np.outer(s, wave_numbers(n_waves))  # (steps, waves)

@@ -8,17 +8,18 @@ results row's "windows" (K, test-time averaging over K windows per recording) is
 
 from __future__ import annotations
 
-import json
 import math
 import os
 from fnmatch import fnmatch
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
-from hybrid_sysid.runs.records import RECORD
-from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.core.checks import bad
+from hybrid_sysid.model.metrics import PARAMETERS, relative_deviation
+from hybrid_sysid.runs.layout import PREDICTIONS, RECORD
+from hybrid_sysid.runs.rundir import DamagedFile, RunDir
+from hybrid_sysid.runs.rundir import find_runs as runs_below
 
 HEAD = ["run", "status", "error", "seed"]
 TAIL = [
@@ -39,22 +40,14 @@ TAIL = [
 RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
 
 
-def _yaml(path: Path):
-    try:
-        return yaml.safe_load(path.read_text())
-    except Exception:  # noqa: BLE001 - a missing or damaged file only leaves the configuration less complete
-        return None
-
-
 def run_config(run_dir) -> dict:
     """The run's composed config as Hydra saved it (interpolations unresolved), {} if absent."""
-    cfg = _yaml(RunDir(run_dir).config_file)
-    return cfg if isinstance(cfg, dict) else {}
+    return RunDir(run_dir).saved_values()
 
 
 def run_choices(run_dir) -> dict:
     """The run's config-group choices (objective, model, data, ...), {} if absent."""
-    return config_value(_yaml(RunDir(run_dir).hydra_file), "hydra.runtime.choices") or {}
+    return RunDir(run_dir).choices()
 
 
 def config_value(cfg, dotted: str):
@@ -85,11 +78,7 @@ def _as_paths(paths) -> list[Path]:
 def find_runs(paths) -> list[Path]:
     """Every directory holding a record at or below each path (a run, a sweep, or a parent of sweeps), in
     natural order, so Hydra's job 10 follows job 9."""
-    found = set()
-    for path in _as_paths(paths):
-        if (path / RECORD).is_file():
-            found.add(path.resolve())
-        found.update(p.parent.resolve() for p in path.rglob(RECORD) if p.is_file())
+    found = {run for path in _as_paths(paths) for run in runs_below(path)}
     return sorted(found, key=lambda p: natural_key(p.parts))
 
 
@@ -102,8 +91,9 @@ def _overrides(items) -> dict[str, str]:
 
 
 def _rows_of(run_dir: Path, name: str) -> list[dict]:
+    run = RunDir(run_dir)
     try:
-        rec = json.loads((run_dir / RECORD).read_text())
+        rec = run.record(name)
         base = {
             "run": name,
             "status": str(rec["status"]),
@@ -119,15 +109,15 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
         }
         overrides = _overrides(rec.get("overrides"))
         results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
-    except (OSError, ValueError, TypeError, KeyError, AttributeError) as exc:
+    except (DamagedFile, TypeError, KeyError, AttributeError) as exc:
         # Hydra writes .hydra/overrides.yaml before a job starts, so a job whose record is corrupt still has a
         # known configuration and lands in the right row of the table
-        overrides = _overrides(_yaml(RunDir(run_dir).overrides_file))
+        overrides = _overrides(run.overrides())
         seed = overrides.get("seed", "")
         base = {
             "run": name,
             "status": "unreadable",
-            "error": f"{type(exc).__name__}: {exc}",
+            "error": exc.why if isinstance(exc, DamagedFile) else f"{type(exc).__name__}: {exc}",
             "seed": int(seed) if seed.lstrip("-").isdigit() else None,
         }
         results = []
@@ -145,13 +135,13 @@ def load_runs(paths, exclude=()) -> tuple[Path, pd.DataFrame]:
     paths = _as_paths(paths)
     runs = find_runs(paths)
     if not runs:
-        raise ValueError(f"paths={[str(p) for p in paths]} hold no run (no {RECORD} at or below them)")
+        bad("paths", [str(p) for p in paths], f"directories with runs ({RECORD}) at or below them")
     root = Path(os.path.commonpath([p.resolve() for p in paths]))
     root = root.parent if root in runs else root
     names = {run.relative_to(root).as_posix(): run for run in runs}
     names = {name: run for name, run in names.items() if not any(fnmatch(name, p) for p in exclude)}
     if not names:
-        raise ValueError(f"every run under {[str(p) for p in paths]} matches exclude={list(exclude)}")
+        bad("exclude", list(exclude), f"patterns that leave some runs under {[str(p) for p in paths]}")
     df = pd.DataFrame([row for name, run in names.items() for row in _rows_of(run, name)])
     keys = [c for c in df.columns if c not in HEAD + TAIL]  # first-seen order across runs
     df = df.reindex(columns=HEAD + keys + TAIL)
@@ -197,10 +187,14 @@ def load_predictions(root: Path, df: pd.DataFrame, split: str = "test") -> pd.Da
     frames = []
     for run in df[df.status == "completed"].run.unique():
         try:
-            p = pd.read_csv(Path(root) / run / "predictions.csv")
+            p = RunDir(Path(root) / run).read_table(PREDICTIONS)
             p = p[p.split == split]
-            for name in ("p1", "p2"):
-                dev = (p[f"{name}_true"] - p[f"{name}_pred"]).abs() / p[f"{name}_true"].abs()
+            names = list(PARAMETERS)
+            devs = relative_deviation(
+                p[[f"{n}_pred" for n in names]].to_numpy(), p[[f"{n}_true" for n in names]].to_numpy()
+            )
+            for i, name in enumerate(names):
+                dev = devs[:, i]
                 frames.append(
                     pd.DataFrame(
                         {

@@ -20,8 +20,9 @@ import pandas as pd
 
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report.collect import load_runs, natural_key, row_keys, run_choices
+from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.protocol import protocol
-from hybrid_sysid.report.tables import K_LEVEL, markdown_table
+from hybrid_sysid.report.stats import K_LEVEL
 
 NOISE_LEVELS = (0.0, 0.01)  # the paper's: clean, and N(0, 0.01) added to both channels (sec. 3.3)
 PAPER_SPLITS = ("train", "test")  # it has no validation split

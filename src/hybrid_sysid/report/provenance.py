@@ -27,14 +27,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.report.collect import config_value
-from hybrid_sysid.runs.records import read_record
-from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.rundir import DamagedFile, RunDir, read_yaml
+from hybrid_sysid.runs.sweepdir import SweepDir, sweep_dir_of
 
-SWEEP_FILE = "multirun.yaml"  # Hydra's record of a multirun, in its sweep directory
 # the overrides that only say where runs are written: left out of a command (they would name this machine's paths)
 LOCATION_KEYS = ("hydra.sweep.dir", "hydra.sweep.subdir", "hydra.run.dir")
 APPS = {"config": "hybrid-sysid", "eval": "hybrid-sysid-eval"}  # primary config -> the command that composes it
@@ -53,20 +51,13 @@ class Provenance:
     cpus: tuple[tuple[str | None, int], ...]
 
 
-def _yaml(path: Path):
-    try:
-        return yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError):  # a missing or damaged file: the command is then read elsewhere, or absent
-        return None
-
-
 def _app(config_name) -> str:
     return APPS.get(str(config_name), APPS["config"])
 
 
 def _preset_is_multirun(name: str) -> bool:
     """Whether conf/experiment/<name>.yaml sets hydra.mode: MULTIRUN, so its command needs no -m."""
-    return config_value(_yaml(Path(CONF_DIR) / "experiment" / f"{name}.yaml"), "hydra.mode") == "MULTIRUN"
+    return config_value(read_yaml(Path(CONF_DIR) / "experiment" / f"{name}.yaml"), "hydra.mode") == "MULTIRUN"
 
 
 def command_line(app: str, overrides, multirun: bool = False) -> str:
@@ -78,18 +69,9 @@ def command_line(app: str, overrides, multirun: bool = False) -> str:
     return shlex.join([app, *(["-m"] if flag else []), *overrides])
 
 
-def sweep_dir_of(run_dir: Path) -> Path | None:
-    """The nearest directory at or above run_dir holding a multirun.yaml (a run of experiment=tuned sits two levels
-    below its job), None for a run outside a sweep."""
-    for d in (run_dir, *run_dir.parents):
-        if (d / SWEEP_FILE).is_file():
-            return d
-    return None
-
-
 def sweep_command(sweep_dir: Path) -> str | None:
     """The command line that started the sweep, from its multirun.yaml; None if the file cannot be read."""
-    hydra = config_value(_yaml(Path(sweep_dir) / SWEEP_FILE), "hydra")
+    hydra = config_value(SweepDir(sweep_dir).saved_values(), "hydra")
     task = config_value(hydra, "overrides.task")
     if not isinstance(task, list):
         return None
@@ -99,11 +81,12 @@ def sweep_command(sweep_dir: Path) -> str | None:
 
 def _run_command(run_dir: Path) -> str:
     """A single run's command line: its record's overrides (Hydra's task overrides: the command line's)."""
+    run = RunDir(run_dir)
     try:
-        overrides = read_record(run_dir).get("overrides") or []
-    except (OSError, ValueError, AttributeError):  # an unreadable record: Hydra's own copy of the overrides
-        overrides = _yaml(RunDir(run_dir).overrides_file) or []
-    return command_line(_app(config_value(_yaml(RunDir(run_dir).hydra_file), "hydra.job.config_name")), overrides)
+        overrides = (run.record() or {}).get("overrides") or run.overrides()
+    except (DamagedFile, AttributeError):  # an unreadable record: Hydra's own copy of the overrides
+        overrides = run.overrides()
+    return command_line(_app(run.config_name()), overrides)
 
 
 def _counts(values: list) -> list[tuple[object, int]]:

@@ -19,12 +19,13 @@ import pandas as pd
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_runs
+from hybrid_sysid.report.extras import extras_of
+from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.paper import LEGEND, comparison_markdown
 from hybrid_sysid.report.protocol import one_line, protocol
 from hybrid_sysid.report.provenance import provenance, provenance_lines
 from hybrid_sysid.report.summary import failed_lines, tested_table, windows_note
-from hybrid_sysid.report.tables import METRICS, to_markdown
-from hybrid_sysid.report.tuning import tuning_markdown
+from hybrid_sysid.report.tables import METRICS
 
 
 def _title(df: pd.DataFrame, path: Path) -> tuple[str, str]:
@@ -101,7 +102,6 @@ def write_results(
             slug, i = f"{base}_{i}", i + 1
         used.add(slug)
         n_runs, n_done = df.run.nunique(), df[df.status == "completed"].run.nunique()
-        path = group if merged else group[0]  # what the search table reads
         lines += [
             f"## {title}",
             "",
@@ -120,21 +120,17 @@ def write_results(
                 lambda p, table=table: sweep_figures.robustness_figure(table, p, metric=metric, split=split),
             )
             lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
-            if "scenario" in table.index.names:  # experiment=transfer: the bars of its rows per scenario
-                write_atomic(
-                    figures / f"{slug}_bars.png", lambda p, table=table: sweep_figures.transfer_figure(table, p)
-                )
-                lines += [f"![transfer: {title}]({figures.name}/{slug}_bars.png)", ""]
-            if "tuning" in table.index.names:  # experiment=tuned: default against tuned, and each search
-                write_atomic(
-                    figures / f"{slug}_tuning.png", lambda p, table=table: sweep_figures.tuning_figure(table, p)
-                )
-                lines += [f"![tuning: {title}]({figures.name}/{slug}_tuning.png)", "", tuning_markdown(path), ""]
+            for extra in extras_of(table):  # what the experiment adds (report.extras)
+                for name, draw in extra.figures.items():
+                    write_atomic(figures / f"{slug}_{name}.png", lambda p, draw=draw, table=table: draw(table, p))
+                    lines += [f"![{name}: {title}]({figures.name}/{slug}_{name}.png)", ""]
+                text = extra.markdown(list(group)) if extra.markdown else ""
+                lines += [text, ""] if text else []
         failed = failed_lines(df)
         if failed:
             lines += ["Failed jobs:", "", *failed, ""]
         # the paper reports the paper's car only; the comparison goes with a sweep's own section, not its merges
-        if reproduction and not merged and "scenario" not in table.index.names:
+        if reproduction and not merged and all(e.paper_car for e in extras_of(table)):
             lines += ["### The paper's figures beside ours", "", comparison_markdown(df, root), LEGEND, ""]
     text = "\n".join(lines).rstrip("\n") + "\n"
     file.parent.mkdir(parents=True, exist_ok=True)

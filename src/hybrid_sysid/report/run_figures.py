@@ -13,6 +13,8 @@ from matplotlib.patches import Patch
 
 from hybrid_sysid.model.metrics import PARAMETERS
 from hybrid_sysid.report.plotting import PERCENT, curves_figure, figure_legend, percent, save_figure
+from hybrid_sysid.runs.layout import CURVES, FIGURES, PREDICTIONS
+from hybrid_sysid.runs.rundir import RunDir
 
 
 def predictions_figure(test: pd.DataFrame, path: Path, title: str) -> None:
@@ -65,10 +67,9 @@ def predictions_figure(test: pd.DataFrame, path: Path, title: str) -> None:
 def write_run_figures(run_dir) -> None:
     """figures/ of a run directory: test predictions at every noise level (test_predictions.png), and the learning
     curves (mean relative deviation in percent against step, one line per split and noise level)."""
-    run_dir = Path(run_dir)
-    predictions = pd.read_csv(run_dir / "predictions.csv")
-    curves = pd.read_csv(run_dir / "curves.csv")
-    figures = run_dir / "figures"
+    run = RunDir(run_dir)
+    predictions, curves = run.read_table(PREDICTIONS), run.read_table(CURVES)
+    figures = run / FIGURES
     figures.mkdir(exist_ok=True)
     test = predictions[predictions.split == "test"]
     if len(test):

@@ -1,5 +1,6 @@
 """A sweep's summary files, built from its run records on disk alone: summary.csv (collect's long form),
-summary.md (the comparison table and the failed jobs), summary.tex on request, and figures/."""
+summary.md (the comparison table and the failed jobs), summary.tex on request, figures/, and what an experiment
+adds to its table (report.extras: its figures, a section in words as <row key>.md)."""
 
 from __future__ import annotations
 
@@ -10,16 +11,13 @@ import pandas as pd
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
-from hybrid_sysid.report.tables import (
-    K_LEVEL,
-    METRICS,
-    compared_level,
-    paired_deviations,
-    row_label,
-    summary_table,
-    to_latex,
-    to_markdown,
-)
+from hybrid_sysid.report.extras import extras_of
+from hybrid_sysid.report.latex import to_latex
+from hybrid_sysid.report.markdown import to_markdown
+from hybrid_sysid.report.stats import K_LEVEL, paired_deviations
+from hybrid_sysid.report.tables import METRICS, compared_level, row_label, summary_table
+from hybrid_sysid.runs.layout import CURVES, FIGURES
+from hybrid_sysid.runs.rundir import RunDir
 
 
 def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
@@ -61,7 +59,7 @@ def _curves(df: pd.DataFrame, root: Path) -> pd.DataFrame:
     keys, frames = row_keys(df), []
     for _, r in df[df.status == "completed"].drop_duplicates("run").iterrows():
         try:
-            c = pd.read_csv(root / r.run / "curves.csv")
+            c = RunDir(root / r.run).read_table(CURVES)
         except (OSError, ValueError):
             continue
         frames.append(c.assign(run=r.run, label=row_label(keys, [r[k] for k in keys])))
@@ -93,8 +91,10 @@ def write_summary(
     below paths (default: sweep_dir), but those whose name (relative to the common parent, e.g. "0/search/3")
     matches a glob pattern of ``exclude``. ``compare``: the row key whose values the marks compare (default:
     objective when swept). Returns (long form, table); the table's attrs["paired"] holds the per-recording
-    deviations its marks test (tables.paired_deviations). ``on_table(df, table)`` is called once the summary
-    files are written, before the figures are drawn (a sweep prints its table there)."""
+    deviations its marks test (stats.paired_deviations), attrs["sections"] the sections in words an experiment
+    adds (report.extras).
+    ``on_table(df, table)`` is called once the summary files are written, before the figures are drawn (a sweep
+    prints its table there)."""
     sweep_dir = Path(sweep_dir)
     root, df = load_runs(sweep_dir if paths is None else paths, exclude)
     table = tested_table(df, root, split, metric)
@@ -124,9 +124,19 @@ def write_summary(
         )
     if on_table is not None:
         on_table(df, table)
+    sections = table.attrs["sections"] = []
+    for extra in extras_of(table):  # what the experiment adds (report.extras)
+        text = extra.markdown([sweep_dir] if paths is None else list(paths)) if extra.markdown else ""
+        if text:
+            write_atomic(sweep_dir / f"{extra.row_key}.md", lambda p, text=text: p.write_text(text, encoding="utf-8"))
+            sections.append(text)
     if figures:
-        out = sweep_dir / "figures"
+        out = sweep_dir / FIGURES
         out.mkdir(exist_ok=True)
+        if any(c[2] == "mean" for c in table.columns):
+            for extra in extras_of(table):
+                for name, draw in extra.figures.items():
+                    write_atomic(out / f"{name}.png", lambda p, draw=draw: draw(table, p))
         if any(c[2] == "mean" for c in table.columns):  # at least one completed run
             write_atomic(
                 out / "robustness.png", lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split)

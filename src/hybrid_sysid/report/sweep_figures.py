@@ -1,11 +1,11 @@
-"""Figures comparing the rows of a sweep's table (e.g. labelled vs hybrid): robustness, tuning, transfer and
-learning curves. Relative deviations in percent, as in the tables; one legend per figure."""
+"""Figures comparing the rows of a sweep's table (e.g. labelled vs hybrid): robustness and learning curves
+(an experiment's own figures: hybrid_sysid.experiments). Relative deviations in percent, as in the tables; one
+legend per figure."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
-import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 
@@ -16,16 +16,15 @@ from hybrid_sysid.report.plotting import (
     figure_legend,
     noise_axis,
     panels,
-    percent,
     save_figure,
 )
-from hybrid_sysid.report.tables import K_LEVEL, METRICS, row_label
+from hybrid_sysid.report.stats import K_LEVEL
+from hybrid_sysid.report.tables import METRICS, row_label
 
-GROUP_INCHES = 0.8  # the width of one row's group of bars in the transfer figure
 DODGE = 0.3  # the width over which the rows' points at one noise level are spread, so error bars do not hide
 
 
-def _keys(table: pd.DataFrame) -> list[dict]:
+def row_dicts(table: pd.DataFrame) -> list[dict]:
     """Each row of the table as {level: value}."""
     names = [str(n) for n in table.index.names]
     return [dict(zip(names, label if isinstance(label, tuple) else (label,))) for label in table.index]
@@ -36,7 +35,7 @@ def _offsets(n: int) -> np.ndarray:
     return (np.arange(n) - (n - 1) / 2) * (DODGE / (n - 1) if n > 1 else 0.0)
 
 
-def _draw_rows(ax, table, param, levels, styles, labels) -> None:
+def draw_rows(ax, table, param, levels, styles, labels) -> None:
     """One errorbar line per table row in a panel: the mean over seeds in percent at each noise level's position,
     error bars the std over seeds. styles: per row (colour, linestyle)."""
     x = [i for i, n in enumerate(levels) if (n, param, "mean") in table.columns]
@@ -64,7 +63,7 @@ def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_d
     cells = [c for c in table.columns if c[2] == "mean"]
     params = sorted({p for _, p, _ in cells})
     levels = sorted({n for n, _, _ in cells})
-    keys = _keys(table)
+    keys = row_dicts(table)
     hue = [tuple((k, v) for k, v in r.items() if k != K_LEVEL) for r in keys]
     colours = {h: f"C{i}" for i, h in enumerate(dict.fromkeys(hue))}
     ks = sorted({r[K_LEVEL] for r in keys}) if K_LEVEL in table.index.names else []
@@ -74,35 +73,13 @@ def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_d
     labels = [row_label(table.index.names, list(r.values())) for r in keys]
     fig, axes = panels(len(params))
     for ax, param in zip(axes[0], params):
-        _draw_rows(ax, table, param, levels, styles, labels)
+        draw_rows(ax, table, param, levels, styles, labels)
         noise_axis(ax, levels, METRICS[metric], param)
     # rows of one colour are next to each other in the table: one legend column per colour, its K down it
     grouped = ks and len(labels) == len(colours) * len(ks) and len(colours) <= 4
     figure_legend(fig, ncol=len(colours) if grouped else None)
     note = f"; solid: K = {ks[0]:g}, dashed: K = {ks[1]:g}" if len(ks) > 1 else ""
     save_figure(fig, path, f"robustness: {split} split, mean ± std over seeds{note}")
-
-
-def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "mean_rel_dev") -> None:
-    """experiment=tuned: the metric in percent against noise std, one colour per objective, dashed with its
-    default values and solid with its tuned ones, one panel per parameter, at one K; error bars: std over seeds.
-    ``table`` has the row levels objective and tuning (and K when several were evaluated)."""
-    if K_LEVEL in table.index.names:
-        table = table.xs(k, level=K_LEVEL)
-    cells = [c for c in table.columns if c[2] == "mean"]
-    params = sorted({p for _, p, _ in cells})
-    levels = sorted({n for n, _, _ in cells})
-    # with one objective swept it is no row level: one colour
-    rows = [{"objective": "", **r} for r in _keys(table)]
-    colours = {o: f"C{i}" for i, o in enumerate(dict.fromkeys(r["objective"] for r in rows))}
-    styles = [(colours[r["objective"]], "--" if r["tuning"] == "default" else "-") for r in rows]
-    labels = [", ".join(v for v in (r["objective"], r["tuning"]) if v) for r in rows]
-    fig, axes = panels(len(params))
-    for ax, param in zip(axes[0], params):
-        _draw_rows(ax, table, param, levels, styles, labels)
-        noise_axis(ax, levels, METRICS[metric], param)
-    figure_legend(fig)
-    save_figure(fig, path, f"tuning: test split, K = {k}, mean ± std over seeds (dashed: default values)")
 
 
 def learning_curves_compared(
@@ -121,40 +98,3 @@ def learning_curves_compared(
         y=metric,
         ylabel=METRICS[metric],
     )
-
-
-def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int = 1) -> None:
-    """experiment=transfer and field: one panel per scenario, one group of bars per row (source evaluated there,
-    adapted with each objective, from scratch, oracle, a baseline: as many as the table has), p1 and p2 side by
-    side at one noise level and K, in percent; error bars: std over seeds. ``table`` has the row levels scenario
-    and row (and K when several were evaluated)."""
-    if K_LEVEL in table.index.names:
-        table = table.xs(k, level=K_LEVEL)
-    params = [p for n, p, s in table.columns if s == "mean" and n == noise]
-    scenarios = list(dict.fromkeys(table.index.get_level_values("scenario")))
-    # each panel as wide as its rows (a one-row panel as three), so every group of bars has the same width
-    slots = [max(len(table.xs(s, level="scenario")), 3) for s in scenarios]
-    fig, axes = plt.subplots(
-        1,
-        len(scenarios),
-        figsize=(GROUP_INCHES * sum(slots) + 1.2, 4.2),
-        sharey=True,
-        squeeze=False,
-        layout="constrained",
-        gridspec_kw={"width_ratios": slots},
-    )
-    width = 0.8 / max(len(params), 1)
-    for ax, scenario in zip(axes[0], scenarios):
-        sub = table.xs(scenario, level="scenario")
-        x = range(len(sub))
-        for j, param in enumerate(params):
-            mean = PERCENT * sub[(noise, param, "mean")].astype(float).to_numpy()
-            err = PERCENT * sub[(noise, param, "std")].astype(float).fillna(0.0).to_numpy()
-            ax.bar([i + (j - (len(params) - 1) / 2) * width for i in x], mean, width, yerr=err, capsize=3, label=param)
-        ax.set_xticks(list(x), [str(r) for r in sub.index], rotation=30, ha="right", fontsize="small")
-        ax.set_xlim(-0.5, max(len(sub), 3) - 0.5)  # bars as wide in a one-row panel as in the others
-        ax.set(title=scenario, yscale="log")
-        ax.grid(True, axis="y", which="both", alpha=0.3)
-    axes[0, 0].set_ylabel(percent(METRICS["mean_rel_dev"]))
-    figure_legend(fig)
-    save_figure(fig, path, f"transfer: test split, noise std {noise:g}, K = {k}, mean ± std over seeds")

@@ -1,2 +1,3 @@
-"""A run directory (rundir.RunDir: its layout, saved config, checkpoints, resume check) and its record
-(records: metrics.json, never replaced once completed)."""
+"""Run and sweep directories, read and written here alone: their file names (layout), a run's files (rundir:
+RunDir), its record (records), resuming it (resume), the one-writer lock (locks), a sweep's record of itself
+(sweepdir) and what made a run's numbers (provenance: the commit and the CPU)."""

@@ -1,15 +1,11 @@
-"""One run directory's layout, known here alone: Hydra's saved config, the checkpoints, the record.
+"""A run directory, read and written here alone (its file names: runs/layout.py).
 
-::
-
-    <run>/.hydra/config.yaml      the composed config the run was made with (Hydra writes it before the job)
-    <run>/.hydra/overrides.yaml   its command-line overrides
-    <run>/.hydra/hydra.yaml       Hydra's own settings (the group choices)
-    <run>/checkpoints/best.ckpt   the weights model selection chose; last.ckpt: the newest training state
-    <run>/metrics.json            the record (hybrid_sysid.runs.records), written last
-
-The sub-runs that experiments chain inside one job (experiment=transfer, experiment=tuned) get the same files
-(``write_config``), so every command reads them as runs.
+Every command reads a run the same way: its record (``record``), its saved config (``saved_config`` as a config,
+``saved_values`` as plain data for a report), its group choices and overrides, and the weights it is used with
+(``trained_checkpoint``: best, else last). A run directory may come from someone else, so a damaged file is a
+one-line ConfigError naming the key that pointed here, never a traceback. The sub-runs that experiments chain
+inside one job (experiment=transfer, experiment=tuned) get the same files (``write_config``), so every command
+reads them as runs.
 """
 
 from __future__ import annotations
@@ -19,32 +15,24 @@ import logging
 import sys
 from pathlib import Path
 
+import yaml
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config import flatten
-from hybrid_sysid.core.checks import ConfigError, bad
-from hybrid_sysid.core.files import write_yaml_atomic
-from hybrid_sysid.runs.records import (
-    RECORD,
-    CompletedRecordError,
-    completed_record,
-    previous_record,
-    run_record,
-    write_record,
-)
+from hybrid_sysid.core.checks import ConfigError, Shown, bad
+from hybrid_sysid.core.files import write_atomic, write_json_atomic, write_yaml_atomic
+from hybrid_sysid.runs import layout
+from hybrid_sysid.runs.records import CompletedRecordError, is_completed, run_record
 
 log = logging.getLogger("hybrid_sysid")
-CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
-CHECKPOINTS = ("best.ckpt", "last.ckpt")  # the weights a trained run is used with: best, else last
-WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one process that writes there
-# keys that cannot change a run's numbers: a resumed run may differ in them (a name ending in "." frees every key
-# under it: where a run's files go, conf/paths)
-# keys that cannot change a run's weights or scores: which noise levels the learning curves are taken at changes
-# only which curve rows are recorded (an interrupted sweep made before noise.curve_std existed still continues)
-RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths.", "noise.curve_std"}
-# keys added to the configs after runs were made, with the value that gives a run without them its own numbers:
-# a saved config lacking one of them agrees with that value
-ADDED = {"objective.target": "residual"}
+
+
+class DamagedFile(ConfigError):
+    """A file of a run directory that cannot be read; ``why`` says which and how, without the key."""
+
+    @property
+    def why(self) -> str:
+        text = self.allowed.removeprefix("its ")
+        return text.replace(" (", ": ", 1).removesuffix(")") if " (" in text else text
 
 
 class RunDir:
@@ -56,162 +44,163 @@ class RunDir:
     def __repr__(self) -> str:
         return f"RunDir({str(self.path)!r})"
 
+    def __truediv__(self, name: str) -> Path:
+        return self.path / name
+
     @property
     def config_file(self) -> Path:
-        return self.path / CONFIG
-
-    @property
-    def overrides_file(self) -> Path:
-        return self.path / OVERRIDES
-
-    @property
-    def hydra_file(self) -> Path:
-        return self.path / HYDRA
+        return self.path / layout.CONFIG
 
     @property
     def checkpoints(self) -> Path:
-        return self.path / "checkpoints"
+        return self.path / layout.CHECKPOINTS
 
     @property
     def record_file(self) -> Path:
-        return self.path / RECORD
+        return self.path / layout.RECORD
 
-    def saved_config(self, key: str) -> DictConfig:
-        """The composed config the run saved; ConfigError naming ``key`` when it has none or it is damaged."""
-        if not self.config_file.is_file():
-            raise ConfigError(
-                f"{key} = {str(self.path)!r} is not allowed: it has no {CONFIG} (a run directory "
-                "written by hybrid-sysid)"
-            )
-        try:
-            cfg = OmegaConf.load(self.config_file)
-        except Exception as exc:  # noqa: BLE001 - yaml's errors are many classes; the message says which
-            raise ConfigError(
-                f"{key} = {str(self.path)!r} is not allowed: its {CONFIG} is damaged "
-                f"({type(exc).__name__}: {' '.join(str(exc).split())})"
-            ) from None
-        if not isinstance(cfg, DictConfig):
-            raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: its {CONFIG} is damaged (not a mapping)")
-        return cfg
+    def is_run(self) -> bool:
+        """Whether the directory holds a record or a saved config (an output may not land inside one)."""
+        return self.record_file.is_file() or self.config_file.is_file()
 
-    def read_record(self, key: str) -> dict | None:
+    # -- reading ------------------------------------------------------------------------------------------------
+
+    def record(self, key: str = "run") -> dict | None:
         """The run's record, None when it has none; ConfigError naming ``key`` when it is damaged."""
         if not self.record_file.is_file():
             return None
         try:
             record = json.loads(self.record_file.read_text())
         except (OSError, ValueError) as exc:
-            raise ConfigError(
-                f"{key} = {str(self.path)!r} is not allowed: its {RECORD} is damaged ({type(exc).__name__}: {exc})"
-            ) from None
+            self._damaged(key, layout.RECORD, exc)
         if not isinstance(record, dict):
-            raise ConfigError(f"{key} = {str(self.path)!r} is not allowed: its {RECORD} is damaged (not a mapping)")
+            self._damaged(key, layout.RECORD, "not a mapping")
         return record
 
-    def load_weights(self, key: str) -> tuple[Path, dict]:
+    def completed_record(self) -> dict | None:
+        """The record if it is readable and says completed, else None (missing, truncated, failed...)."""
+        try:
+            record = self.record()
+        except ConfigError:
+            return None
+        return record if is_completed(record) else None
+
+    def saved_config(self, key: str = "run") -> DictConfig:
+        """The composed config the run saved; ConfigError naming ``key`` when it has none or it is damaged."""
+        if not self.config_file.is_file():
+            bad(key, Shown(str(self.path)), f"it has no {layout.CONFIG} (a run directory written by hybrid-sysid)")
+        try:
+            cfg = OmegaConf.load(self.config_file)
+        except Exception as exc:  # noqa: BLE001 - yaml's errors are many classes; the message says which
+            self._damaged(key, layout.CONFIG, exc)
+        if not isinstance(cfg, DictConfig):
+            self._damaged(key, layout.CONFIG, "not a mapping")
+        return cfg
+
+    def saved_values(self) -> dict:
+        """The saved config as plain data (interpolations unresolved), {} when absent or damaged: what a report
+        reads of a run it tabulates."""
+        values = read_yaml(self.config_file)
+        return values if isinstance(values, dict) else {}
+
+    def choices(self) -> dict:
+        """The run's config-group choices (objective, model, data, ...), {} when unknown."""
+        hydra = read_yaml(self.path / layout.HYDRA)
+        choices = (
+            ((hydra or {}).get("hydra") or {}).get("runtime", {}).get("choices") if isinstance(hydra, dict) else None
+        )
+        return choices if isinstance(choices, dict) else {}
+
+    def config_name(self) -> str | None:
+        """The primary config the run was composed from (config: hybrid-sysid, eval: hybrid-sysid-eval)."""
+        hydra = read_yaml(self.path / layout.HYDRA)
+        job = ((hydra or {}).get("hydra") or {}).get("job") if isinstance(hydra, dict) else None
+        return job.get("config_name") if isinstance(job, dict) else None
+
+    def overrides(self) -> list[str]:
+        """The command-line overrides Hydra saved before the job started ([] when unknown): a job whose record is
+        damaged still has a known configuration."""
+        saved = read_yaml(self.path / layout.OVERRIDES)
+        return [str(o) for o in saved] if isinstance(saved, list) else []
+
+    def trained_checkpoint(self, key: str = "run", which: str | None = None) -> Path:
+        """The weights a trained run is used with: best.ckpt, or last.ckpt when it never validated (``which``:
+        "best" or "last" for that one alone); ConfigError naming ``key`` otherwise."""
+        names = layout.TRAINED if which is None else (f"{which}.ckpt",)
+        if which is not None and names[0] not in layout.TRAINED:
+            bad("checkpoint", which, "best or last (None: best, else last)")
+        for name in names:
+            if (self.checkpoints / name).is_file():
+                return self.checkpoints / name
+        bad(
+            key,
+            Shown(str(self.path)),
+            f"a run that trained a network, with checkpoints/{' or '.join(names)} (hybrid-sysid writes both)",
+        )
+
+    def load_weights(self, key: str = "run", which: str | None = None) -> tuple[Path, dict]:
         """The trained checkpoint (``trained_checkpoint``) and its state_dict; ConfigError naming ``key`` when it
         cannot be read (truncated, another format)."""
         import torch  # here: reading a run's layout loads no torch
 
-        path = self.trained_checkpoint(key)
+        path = self.trained_checkpoint(key, which)
         try:
             return path, torch.load(path, map_location="cpu", weights_only=True)["state_dict"]
         except Exception as exc:  # noqa: BLE001 - torch raises several classes for a damaged or foreign file
-            raise ConfigError(
-                f"{key} = {str(self.path)!r} is not allowed: its {path.relative_to(self.path)} cannot be read "
-                f"({type(exc).__name__}: {' '.join(str(exc).split())[:200]})"
-            ) from None
+            self._damaged(key, str(path.relative_to(self.path)), exc, "cannot be read")
+
+    def read_table(self, name: str):
+        """predictions.csv or curves.csv as a DataFrame; OSError or ValueError when absent or damaged."""
+        import pandas as pd
+
+        return pd.read_csv(self.path / name)
+
+    # -- writing ------------------------------------------------------------------------------------------------
 
     def write_config(self, cfg: DictConfig, overrides: list[str]) -> None:
         """config.yaml and overrides.yaml, as Hydra writes them for a job before it starts."""
         write_yaml_atomic(self.config_file, OmegaConf.to_container(cfg))
-        write_yaml_atomic(self.overrides_file, list(overrides))
+        write_yaml_atomic(self.path / layout.OVERRIDES, list(overrides))
 
-    def trained_checkpoint(self, key: str) -> Path:
-        """The weights a trained run is used with: best.ckpt, or last.ckpt when it never validated; ConfigError
-        naming ``key`` otherwise."""
-        for name in CHECKPOINTS:
-            if (self.checkpoints / name).is_file():
-                return self.checkpoints / name
-        raise ConfigError(
-            f"{key} = {str(self.path)!r} is not allowed: it holds no checkpoints/"
-            f"{' or '.join(CHECKPOINTS)} (a run directory of hybrid-sysid that trained a network)"
-        )
-
-    def resume_checkpoint(self) -> Path | None:
-        """The checkpoint to resume from: last.ckpt; best.ckpt when last.ckpt is damaged (both hold the full
-        training state); None (train from the beginning, which gives the same numbers) when best.ckpt is damaged,
-        as the best weights the run would be evaluated with are then lost, or when neither loads. Damaged files are
-        reported and overwritten by the run's next checkpoints, so a damaged file never blocks a run."""
-        ok = {}
-        for name in ("last.ckpt", "best.ckpt"):
-            path = self.checkpoints / name
-            if path.exists():
-                ok[name] = _loadable(path)
-                if not ok[name]:
-                    log.warning("checkpoint %s cannot be loaded (damaged or truncated); not resuming from it", path)
-        if ok.get("best.ckpt", True) is False or (ok and not any(ok.values())):
-            log.warning("training %s from the beginning", self.path)
-            return None
-        if ok.get("last.ckpt"):
-            return self.checkpoints / "last.ckpt"
-        return self.checkpoints / "best.ckpt" if ok.get("best.ckpt") else None
-
-    def check_resume(self, cfg: DictConfig, overrides=()) -> None:
-        """``resume=`` must name a run (its saved config, written before any of its work) of this config: every
-        value but those that cannot change the numbers (RESUME_FREE) the same. ConfigError naming the keys. A saved
-        config that parses but lacks keys (a truncated file) is reported as damaged, with the command that
-        rewrites it from ``overrides`` (this command's) when the keys it holds agree."""
-        if not self.path.is_dir():
-            bad("resume", str(self.path), "no such directory; give the directory of the run to continue")
-        if not self.config_file.is_file():
-            bad("resume", str(self.path), f"the directory holds no run (no {CONFIG})")
-        try:
-            saved = OmegaConf.to_container(OmegaConf.load(self.config_file), resolve=False)
-        except Exception as exc:  # noqa: BLE001 - a damaged file cannot tell; the run's own files still resume
-            log.warning("%s is unreadable (%s); resuming without comparing the configs", self.config_file, exc)
-            return
-        now = flatten(OmegaConf.to_container(cfg, resolve=False))
-        was = flatten(saved if isinstance(saved, dict) else {})
-        differ = [k for k in sorted(set(now) | set(was)) if not _resume_free(k) and _value(now, k) != _value(was, k)]
-        held = [k for k in differ if k in was]
-        if differ and not held:  # every difference is a key the file lacks: a damaged file, not another run
-            lacking = [k for k in differ if k in now]
-            command = " ".join(["hybrid-sysid", *overrides, "--cfg", "job"])
-            bad(
-                "resume",
-                str(self.path),
-                f"its {CONFIG} is damaged: it lacks {len(lacking)} keys ({', '.join(lacking[:3])}"
-                f"{', ...' if len(lacking) > 3 else ''}) and the {len(was)} it holds agree with this config; "
-                f"rewrite it with `{command} > {self.config_file}` and resume again",
-            )
-        if differ:
-            first = held + [k for k in differ if k not in held]  # values it holds first, then keys it lacks
-            shown = "; ".join(f"{k} = {_value(was, k)!r} there, {_value(now, k)!r} here" for k in first[:3])
-            bad(
-                "resume",
-                str(self.path),
-                f"it holds a run of another config ({shown}"
-                f"{'; ...' if len(differ) > 3 else ''}); resume with the run's own values",
-            )
-
-    def completed_record(self) -> dict | None:
-        return completed_record(self.path)
-
-    def previous_record(self, overrides) -> dict | None:
-        """The record of a run of these overrides that already completed here (a re-run skips it), else None;
-        ValueError for a completed run of other overrides."""
-        return previous_record(self.path, overrides)
+    def write_tables(self, predictions, curves) -> None:
+        """predictions.csv and curves.csv (DataFrames); the run's figures are drawn from them."""
+        write_atomic(self.path / layout.CURVES, lambda p: curves.to_csv(p, index=False))
+        write_atomic(self.path / layout.PREDICTIONS, lambda p: predictions.to_csv(p, index=False))
 
     def write_record(self, record: dict) -> None:
-        write_record(self.path, record)
+        """metrics.json, atomically; never over a completed run's record (a run is final once done)."""
+        if self.completed_record() is not None:
+            raise CompletedRecordError(f"{self.record_file} holds a completed run; not replacing it")
+        write_json_atomic(self.record_file, record)
+
+    def previous_record(self, overrides) -> dict | None:
+        """The record of a run of these overrides that already completed here (a re-run skips it), else None. A
+        record that cannot be read (e.g. truncated) is no completed run: the job runs again. A completed run of
+        other overrides is a ConfigError."""
+        try:
+            record = self.record()
+        except ConfigError as exc:
+            log.warning("%s; running the job again", exc)
+            return None
+        if not is_completed(record):
+            return None
+        wanted = [o for o in overrides if not o.startswith("resume=")]
+        had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
+        if sorted(had) != sorted(wanted):
+            bad(
+                "hydra.run.dir",
+                Shown(str(self.path)),
+                f"it holds a completed run of other overrides ({' '.join(had)}); choose another hydra.run.dir / "
+                "hydra.sweep.dir",
+            )
+        return record
 
     def drop_stale_record(self) -> None:
         """Remove the record of a job that failed or was interrupted before, once the job has completed all its
         work in sub-directories (experiment=transfer, experiment=tuned: their runs hold the records), so the sweep
         summary no longer counts it as failed. A completed record is never removed."""
         if self.record_file.is_file() and self.completed_record() is None:
-            log.info("%s: the earlier %s superseded by the completed runs below it", self.record_file, "record")
+            log.info("%s: the earlier record superseded by the completed runs below it", self.record_file)
             self.record_file.unlink()
 
     def record_end(self, overrides, seed, status: str, error: str) -> dict:
@@ -228,40 +217,23 @@ class RunDir:
                 )
         return {"status": status, "error": error}
 
+    def _damaged(self, key: str, name: str, why, verb: str = "is damaged") -> None:
+        if isinstance(why, BaseException):
+            why = f"{type(why).__name__}: {' '.join(str(why).split())[:200]}"
+        raise DamagedFile(key, Shown(str(self.path)), f"its {name} {verb} ({why})")
 
-def hold_for_writing(path: Path, key: str):
-    """Take the one-writer lock of a run or sweep directory (an advisory flock on WRITER_LOCK inside it, released
-    when the holder releases it or ends, however it ends) and return it; ConfigError naming ``key`` when another
-    process holds it. The directory must exist."""
-    from filelock import FileLock, Timeout
 
-    lock = FileLock(str(Path(path) / WRITER_LOCK), timeout=0)
+def find_runs(path: Path) -> list[Path]:
+    """Every directory at or below ``path`` holding a record: a run, a sweep's jobs, a chain's sub-runs."""
+    path = Path(path)
+    found = {path.resolve()} if (path / layout.RECORD).is_file() else set()
+    found.update(p.parent.resolve() for p in path.rglob(layout.RECORD) if p.is_file())
+    return sorted(found)
+
+
+def read_yaml(path: Path):
+    """A YAML file as plain data; None when it is missing or damaged (a report then knows less of the run)."""
     try:
-        lock.acquire()
-    except Timeout:
-        raise ConfigError(
-            f"{key} = {path} is not allowed: another process is writing there (a run or sweep of hybrid-sysid); "
-            f"wait until it ends, or choose another {key}"
-        ) from None
-    return lock
-
-
-def _loadable(path: Path) -> bool:
-    import torch  # here: a sweep's parent process reads run directories without loading torch
-
-    try:
-        torch.load(path, map_location="cpu", weights_only=True)
-        return True
-    except Exception:  # noqa: BLE001 - truncated, garbage, another format: all mean "cannot resume from it"
-        return False
-
-
-def _resume_free(key: str) -> bool:
-    return key in RESUME_FREE or any(key.startswith(p) for p in RESUME_FREE if p.endswith("."))
-
-
-def _value(flat: dict, key: str):
-    """A flattened config's value at ``key``; an empty mapping, or a key of ADDED at its value there, counts as unset
-    (a run saved before a group such as callbacks existed lacks the key that now holds {})."""
-    value = flat.get(key, "(unset)")
-    return "(unset)" if value == {} or (key in ADDED and value == ADDED[key]) else value
+        return yaml.safe_load(Path(path).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return None

@@ -10,8 +10,8 @@ import lightning as L
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config.targets import build
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.config.targets import arguments, build
+from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.spec import DatasetSpec
 from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
@@ -19,8 +19,6 @@ from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.callbacks import StopAtSafePoints, ValidateAtEnd
 
 log = logging.getLogger("hybrid_sysid")
-# the prior of p is derived from the data (${p_prior:...}), not part of the architecture
-PRIOR_KEYS = ("p_min", "p_max", "p_scale")
 
 
 def build_objective(cfg: DictConfig):
@@ -43,7 +41,7 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
         train_std=cfg.noise.train_std,
         seed=cfg.seed,
         integration=d.integration,
-        fir=getattr(objective, "fir", None),
+        fir=None if objective is None else objective.fir,
     )
 
 
@@ -136,12 +134,11 @@ def build_profiler(name: str, run_dir):
 
 
 def monitor_of(cfg: DictConfig, objective) -> str:
-    """'auto' selects by the training objective on validation windows when it reads no labels (hybrid), so a
-    label-free run stays label-free; by the labelled relative deviation otherwise."""
+    """trainer.monitor, where 'auto' is the objective's own model-selection figure (model.base.Objective: the
+    training objective on validation windows for one that reads no labels, so a label-free run stays
+    label-free; the labelled relative deviation otherwise)."""
     m = cfg.trainer.monitor
-    if m == "auto":
-        return "val/rel_dev" if getattr(objective, "uses_labels", True) else "val/loss"
-    return m
+    return objective.monitor if m == "auto" else m
 
 
 def check_weights(cfg: DictConfig, run_dir: Path, key: str) -> None:
@@ -157,19 +154,20 @@ def load_network(net: torch.nn.Module, cfg: DictConfig, run_dir: Path, key: str)
     naming ``key``."""
     run = RunDir(run_dir)
     source = run.saved_config(key)
-    mine = {k: v for k, v in OmegaConf.to_container(cfg.model.net).items() if k not in PRIOR_KEYS}
-    theirs = {k: v for k, v in OmegaConf.to_container(source.model.net).items() if k not in PRIOR_KEYS}
+    prior = arguments(cfg.model.net, "model.net")[0].prior_arguments  # derived from the data, not the architecture
+    mine = {k: v for k, v in OmegaConf.to_container(cfg.model.net).items() if k not in prior}
+    theirs = {k: v for k, v in OmegaConf.to_container(source.model.net).items() if k not in prior}
     if mine != theirs:
         diff = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
-        raise ConfigError(
-            f"{key} = {str(run_dir)!r} is not allowed: its network differs from model.net in "
-            + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff)
+        bad(
+            key,
+            Shown(str(run_dir)),
+            "its network differs from model.net in "
+            + ", ".join(f"{k} ({theirs.get(k)} there, {mine.get(k)} here)" for k in diff),
         )
     path, state = run.load_weights(key)
     try:
         net.load_state_dict({k[len("net.") :]: v for k, v in state.items() if k.startswith("net.")})
     except RuntimeError as exc:  # torch lists every mismatched key: its first line names the problem
-        raise ConfigError(
-            f"{key} = {str(run_dir)!r} is not allowed: its weights do not fit model.net ({str(exc).splitlines()[0]})"
-        ) from None
+        bad(key, Shown(str(run_dir)), f"a run whose weights fit model.net ({str(exc).splitlines()[0]})")
     return path

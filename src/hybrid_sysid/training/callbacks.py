@@ -13,6 +13,7 @@ from typing import Sequence
 import lightning as L
 
 from hybrid_sysid.core import stop
+from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.training.tracking import curve_metrics, log_metrics
 
@@ -123,9 +124,16 @@ class RunCheckpoint(L.pytorch.callbacks.ModelCheckpoint):
     def load_state_dict(self, state_dict: dict) -> None:
         here = Path(self.dirpath)
         state = dict(state_dict)
-        # names only (absolute paths in checkpoints written before this class existed are cut to their name)
-        state.update({k: str(here / Path(state[k]).name) if state.get(k) else "" for k in self._PATHS})
-        state["best_k_models"] = {str(here / Path(p).name): v for p, v in state.get("best_k_models", {}).items()}
+        named = [state[k] for k in self._PATHS if state.get(k)] + list(state.get("best_k_models", {}))
+        if any(Path(p).name != p for p in named):
+            bad(
+                "resume",
+                Shown(str(here.parent)),
+                "a run whose checkpoints name their files within the run (this one was saved by a version of "
+                "hybrid-sysid before 0.2, with absolute paths); train it anew",
+            )
+        state.update({k: str(here / state[k]) if state.get(k) else "" for k in self._PATHS})
+        state["best_k_models"] = {str(here / p): v for p, v in state.get("best_k_models", {}).items()}
         state["dirpath"] = self.dirpath
         super().load_state_dict(state)
 

@@ -3,12 +3,9 @@ predictions behind them, per road class, and the tables a run prints."""
 
 from __future__ import annotations
 
-from pathlib import Path
-
 import pandas as pd
 
 from hybrid_sysid.core import stop
-from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.model.metrics import summarise
@@ -65,12 +62,6 @@ def class_table(rows: list[dict]) -> str:
         index=["noise_std", "windows"], columns=["parameter", "road_class"], values="mean_rel_dev"
     )
     return "test mean rel. dev. [%] per road class\n" + (table * 100).round(2).to_string()
-
-
-def write_outputs(run_dir: Path, predictions: pd.DataFrame, curves: pd.DataFrame) -> None:
-    """predictions.csv and curves.csv; the run's figures are drawn from them by the report layer."""
-    write_atomic(run_dir / "curves.csv", lambda p: curves.to_csv(p, index=False))
-    write_atomic(run_dir / "predictions.csv", lambda p: predictions.to_csv(p, index=False))
 
 
 def console_table(results: list[dict]) -> str:

@@ -1,17 +1,20 @@
 """One run: build the data and the model, fit, score the best checkpoint, write the run record.
 
-Three kinds of run share one start (``_open``: the record of a run already completed here, the directory, the
-thread count) and one end (``_finish``: score, write predictions, curves and the record, close the trackers,
-print the table): ``train`` (a network), a baseline (``baseline=``, no training) and ``evaluate_checkpoint``
-(a trained run's network on other data). They are plain Python on a composed config (tests call them in
-process); the command-line entry points are hybrid_sysid.cli.
+Three kinds of run share one start (``Job.open``: the record of a run already completed here, the directory, the
+thread count) and one end (``Job.finish``: score, write predictions, curves and the record, close the trackers,
+print the table): ``train`` (a network), a baseline (``baseline=``, no training) and ``evaluate_checkpoint`` (a
+trained run's network on other data). Each hands the end an ``Outcome``: the estimator, its data and what the record
+says of its training. They are plain Python on a composed config (tests call them in process); the command-line
+entry points are hybrid_sysid.cli.
 """
 
 from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Sequence
 
 import lightning as L
 import pandas as pd
@@ -20,8 +23,11 @@ from omegaconf import DictConfig
 
 from hybrid_sysid.config import validate
 from hybrid_sysid.core import stop
-from hybrid_sysid.core.checks import ConfigError
-from hybrid_sysid.runs.records import cpu_model, run_record
+from hybrid_sysid.core.checks import Shown, bad
+from hybrid_sysid.model.base import SplitPredictor
+from hybrid_sysid.runs.provenance import provenance_fields
+from hybrid_sysid.runs.records import run_record
+from hybrid_sysid.runs.resume import resume_checkpoint
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.build import (
     build_baseline,
@@ -33,10 +39,94 @@ from hybrid_sysid.training.build import (
     monitor_of,
 )
 from hybrid_sysid.training.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
-from hybrid_sysid.training.evaluation import by_road_class, class_table, console_table, score, write_outputs
-from hybrid_sysid.training.tracking import Naming, build_loggers, finish, git_state, hyperparameters
+from hybrid_sysid.training.evaluation import by_road_class, class_table, console_table, score
+from hybrid_sysid.training.tracking import Naming, build_loggers, finish, hyperparameters
 
 log = logging.getLogger("hybrid_sysid")
+
+
+@dataclass
+class Outcome:
+    """What a run hands to its end: the estimator to score, the data module it is scored on, the optimiser steps
+    and learning-curve rows of its training, a line for the console and the record's fields of its kind."""
+
+    model: SplitPredictor
+    dm: object
+    steps: int = 0
+    curves: list[dict] = field(default_factory=list)
+    what: str = ""
+    fields: dict = field(default_factory=dict)
+    rank: int = 0  # with DDP, the process's global rank: only rank 0 scores and writes
+
+    def summary(self) -> str:
+        return self.what
+
+    def record_fields(self) -> dict:
+        """The record's fields of this kind of run, read once the scores are in."""
+        return dict(self.fields)
+
+
+@dataclass
+class BaselineOutcome(Outcome):
+    """A baseline's: its fits run while it is scored, so their time is read after scoring."""
+
+    def summary(self) -> str:
+        return f"{self.what}, fits in {self.model.fit_seconds:.2f} s"
+
+    def record_fields(self) -> dict:
+        seconds = self.model.fit_seconds
+        return {"train_seconds": seconds, "fit_seconds": round(seconds, 2), "monitor": None, "best_checkpoint": None}
+
+
+@dataclass
+class Job:
+    """A run being made: its config, its directory, the overrides it was asked with and its trackers."""
+
+    cfg: DictConfig
+    run: RunDir
+    overrides: list[str]
+    loggers: Sequence = ()
+
+    @classmethod
+    def open(cls, cfg: DictConfig, run_dir, overrides) -> tuple[Job, dict | None]:
+        """The start every run shares: the record of a run of these overrides already completed here (then nothing
+        else is done), else the directory made and the thread count set."""
+        job = cls(cfg, RunDir(run_dir), list(overrides))
+        done = job.run.previous_record(job.overrides)
+        if done is not None:
+            log.info("run %s already completed; not running it again", job.run.path)
+            return job, done
+        job.run.path.mkdir(parents=True, exist_ok=True)
+        if cfg.trainer.get("threads"):
+            torch.set_num_threads(int(cfg.trainer.threads))
+        return job, None
+
+    def finish(self, outcome: Outcome) -> dict:
+        """The end every run shares: score the model on the noise levels and K values of the config, write
+        predictions.csv, curves.csv and the record, close the trackers, print the table. Returns the record."""
+        stop.check()  # a safe point: a termination signal swallowed during the work ends the run here
+        cfg = self.cfg
+        threads = torch.get_num_threads()  # recorded: the numbers depend on it (docs/reliability.md)
+        ks = [int(k) for k in cfg.evaluation.windows]
+        results, predictions = score(outcome.model, outcome.dm, noise_levels(cfg), ks)
+        self.run.write_tables(predictions, pd.DataFrame(outcome.curves, columns=CURVE_COLUMNS))
+        classes = by_road_class(predictions)
+        record = run_record(
+            "completed",
+            self.overrides,
+            cfg.seed,
+            steps=outcome.steps,
+            results=results,
+            threads=threads,
+            by_road_class=classes,
+            **provenance_fields(),  # the code and the processor that made the numbers, read once per process
+            **outcome.record_fields(),
+        )
+        stop.check()  # the last safe point before the run is final
+        self.run.write_record(record)
+        finish(self.loggers, results, outcome.steps)
+        log.info("run %s: %s\n%s\n%s", self.run.path, outcome.summary(), console_table(results), class_table(classes))
+        return record
 
 
 def train(
@@ -61,21 +151,30 @@ def train(
     if init:  # before any directory is made or data simulated: a network that does not fit fails here
         model = build_model(cfg)
         log.info("starting from the weights of %s", load_network(model.net, cfg, Path(init), "init_from"))
-    run, done = _open(cfg, run_dir, overrides)
+    job, done = Job.open(cfg, run_dir, overrides)
     if done is not None:
         return done
     L.seed_everything(cfg.seed, workers=True)  # 0 included
-    loggers = build_loggers(cfg, run.path, experiment, run_name, overrides)
-    for logger in loggers:
+    job.loggers = build_loggers(cfg, job.run.path, experiment, run_name, overrides)
+    for logger in job.loggers:
         logger.log_hyperparams(hyperparameters(cfg))
     if cfg.get("baseline") is not None:
-        return _run_baseline(cfg, run, overrides, loggers)
-    model = model if model is not None else build_model(cfg)
+        return job.finish(_baseline(cfg))
+    outcome = _fit(job, model if model is not None else build_model(cfg))
+    if outcome.rank != 0:
+        return {"status": "completed", "rank": outcome.rank}
+    if init:
+        outcome.fields["init_from"] = str(init)
+    return job.finish(outcome)
+
+
+def _fit(job: Job, model) -> Outcome:
+    """Train the model with the run's Trainer and load its best checkpoint (rank 0 alone, with DDP)."""
+    cfg = job.cfg
     dm = build_datamodule(cfg, model.objective)
     monitor = monitor_of(cfg, model.objective)
-
     ckpt = RunCheckpoint(
-        dirpath=run.checkpoints,
+        dirpath=job.run.checkpoints,
         filename="best",
         monitor=monitor,
         mode="min",
@@ -84,65 +183,47 @@ def train(
     )
     clock = TrainingClock()
     curve_std = cfg.noise.get("curve_std")
-    curve_levels = _noise_levels(cfg) if curve_std is None else [float(s) for s in curve_std]
+    curve_levels = noise_levels(cfg) if curve_std is None else [float(s) for s in curve_std]
     curves = LearningCurves(clock, curve_levels, every_n_steps=cfg.trainer.get("curve_every_n_steps"))
-    trainer = build_trainer(cfg, run.path, [clock, curves, ckpt, *build_callbacks(cfg, monitor)], loggers)
+    trainer = build_trainer(cfg, job.run.path, [clock, curves, ckpt, *build_callbacks(cfg, monitor)], job.loggers)
     dm.setup("fit")
-    last = run.resume_checkpoint()
+    last = resume_checkpoint(job.run)
     if last is not None:
         log.info("resuming from %s", last)
     start = time.perf_counter()
     trainer.fit(model, datamodule=dm, ckpt_path=str(last) if last is not None else None)
     fit_seconds = time.perf_counter() - start
     if trainer.global_rank != 0:
-        return {"status": "completed", "rank": trainer.global_rank}
-
+        return Outcome(model, dm, rank=trainer.global_rank)
     if ckpt.best_model_path:
         state = torch.load(ckpt.best_model_path, map_location="cpu", weights_only=True)["state_dict"]
         model.load_state_dict(state)
     train_seconds = clock.seconds  # evaluations excluded, the time before a resume included
-    return _finish(
-        cfg,
-        run,
-        overrides,
+    return Outcome(
         model,
         dm,
-        curves.rows,
-        loggers,
         trainer.global_step,
+        curves.rows,
         f"{trainer.global_step} steps in {train_seconds:.1f} s",
-        train_seconds=train_seconds,
-        monitor=monitor,
-        best_checkpoint=Path(ckpt.best_model_path).name or None,
-        best_score=None if ckpt.best_model_score is None else float(ckpt.best_model_score),
-        devices=trainer.world_size,
-        fit_seconds=round(fit_seconds, 2),
-        **({"init_from": str(init)} if init else {}),
+        {
+            "train_seconds": train_seconds,
+            "monitor": monitor,
+            "best_checkpoint": Path(ckpt.best_model_path).name or None,
+            "best_score": None if ckpt.best_model_score is None else float(ckpt.best_model_score),
+            "devices": trainer.world_size,
+            "fit_seconds": round(fit_seconds, 2),
+        },
     )
 
 
-def _run_baseline(cfg: DictConfig, run: RunDir, overrides, loggers) -> dict:
+def _baseline(cfg: DictConfig) -> BaselineOutcome:
     """A baseline without a network (``baseline=``, e.g. least squares): no Lightning, no training. Its record
     has the same form as a network run's, with steps 0 and train_seconds = the time of its fits (all done while
     scoring); curves.csv has the header only (no learning curve)."""
     estimator = build_baseline(cfg)
     dm = build_datamodule(cfg)
     dm.setup()
-    return _finish(
-        cfg,
-        run,
-        overrides,
-        estimator,
-        dm,
-        [],
-        loggers,
-        0,
-        lambda: f"baseline {cfg.baseline._target_}, fits in {estimator.fit_seconds:.2f} s",
-        train_seconds=lambda: estimator.fit_seconds,
-        monitor=None,
-        best_checkpoint=None,
-        fit_seconds=lambda: round(estimator.fit_seconds, 2),
-    )
+    return BaselineOutcome(estimator, dm, what=f"baseline {cfg.baseline._target_}")
 
 
 def evaluate_checkpoint(
@@ -155,83 +236,24 @@ def evaluate_checkpoint(
         validate(cfg)
     source = Path(source)
     if cfg.get("baseline") is not None:
-        raise ConfigError(
-            f"run = {str(source)!r} is not allowed: a baseline run (baseline._target_ = "
-            f"{cfg.baseline._target_}) has no trained network to evaluate"
+        bad(
+            "run",
+            Shown(str(source)),
+            f"a run that trained a network (a baseline run, {cfg.baseline._target_}, has none)",
         )
     model = build_model(cfg)
     checkpoint = load_network(model.net, cfg, source, "run")
-    steps = (RunDir(source).read_record("run") or {}).get("steps", 0)  # a damaged record fails here, before work
-    run, done = _open(cfg, run_dir, overrides)
+    steps = (RunDir(source).record("run") or {}).get("steps", 0)  # a damaged record fails here, before work
+    job, done = Job.open(cfg, run_dir, overrides)
     if done is not None:  # a re-run sweep skips what it evaluated
         return done
     dm = build_datamodule(cfg, model.objective)
     dm.setup()
-    return _finish(
-        cfg,
-        run,
-        overrides,
-        model,
-        dm,
-        [],
-        (),
-        steps,
-        f"the network of {source}",
-        source_run=str(source),
-        checkpoint=checkpoint.name,
-    )
+    fields = {"source_run": str(source), "checkpoint": checkpoint.name}
+    return job.finish(Outcome(model, dm, steps, what=f"the network of {source}", fields=fields))
 
 
-def _open(cfg: DictConfig, run_dir, overrides) -> tuple[RunDir, dict | None]:
-    """The start every run shares: the record of a run of these overrides already completed here (then nothing
-    else is done), else the directory made and the thread count set."""
-    run = RunDir(run_dir)
-    done = run.previous_record(overrides)
-    if done is not None:
-        log.info("run %s already completed; not running it again", run.path)
-        return run, done
-    run.path.mkdir(parents=True, exist_ok=True)
-    if cfg.trainer.get("threads"):
-        torch.set_num_threads(int(cfg.trainer.threads))
-    return run, None
-
-
-def _finish(cfg: DictConfig, run: RunDir, overrides, model, dm, curve_rows, loggers, step: int, what, **fields) -> dict:
-    """The end every run shares: score the model on the noise levels and K values of the config, write
-    predictions.csv, curves.csv and the record (``fields`` added to it; a callable is read after scoring), close
-    the trackers, print the table. Returns the record."""
-    stop.check()  # a safe point: a termination signal swallowed during the work ends the run here
-    threads = torch.get_num_threads()  # recorded: the numbers depend on it (docs/reliability.md)
-    results, predictions = score(model, dm, _noise_levels(cfg), [int(k) for k in cfg.evaluation.windows])
-    write_outputs(run.path, predictions, pd.DataFrame(curve_rows, columns=CURVE_COLUMNS))
-    classes = by_road_class(predictions)
-    fields = {k: v() if callable(v) else v for k, v in fields.items()}
-    # the code and the processor that made the numbers (report/provenance.py names them under each table); both
-    # are read once per process, so a record is no slower to write
-    commit, dirty = git_state() or (None, None)
-    record = run_record(
-        "completed",
-        overrides,
-        cfg.seed,
-        steps=step,
-        results=results,
-        threads=threads,
-        by_road_class=classes,
-        git_commit=commit,
-        git_dirty=dirty,
-        cpu=cpu_model(),
-        **fields,
-    )
-    stop.check()  # the last safe point before the run is final
-    run.write_record(record)
-    finish(loggers, results, step)
-    log.info(
-        "run %s: %s\n%s\n%s", run.path, what() if callable(what) else what, console_table(results), class_table(classes)
-    )
-    return record
-
-
-def _noise_levels(cfg: DictConfig) -> list[float]:
+def noise_levels(cfg: DictConfig) -> list[float]:
     """The test noise levels (noise.eval_std): the final scores', and the learning curves' unless noise.curve_std
     names others."""
     return [float(s) for s in cfg.noise.eval_std]

@@ -1,0 +1,155 @@
+"""One command's process: how it takes termination signals, and its exit status.
+
+Exit statuses: 0 done; 1 a failure during the work; 2 a value refused (one line on stderr), a config that does
+not compose or an OS error before any job; 128 + the signal's number for a job or sweep ended by SIGTERM or SIGINT.
+
+Within a job, SIGTERM and SIGINT only request a stop that the work's safe points raise (core.stop); between jobs
+(a sweep's parent, a parallel worker) they mark the sweep interrupted, so jobs not yet started skip, and pass the
+signal to the running jobs, which record their interruption.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import sys
+import traceback
+from contextlib import contextmanager
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from hybrid_sysid.cli.extras import missing_extra
+from hybrid_sysid.core import stop
+from hybrid_sysid.runs.layout import STOP_MARKER
+
+SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+
+@dataclass
+class CommandProcess:
+    """What a command's process knows of itself beyond its signals (core.stop) and its writer locks (runs.locks):
+    the sweep it runs, and whether a job has started in it (a failure before one is a refusal, exit status 2)."""
+
+    sweep_dir: Path | None = None
+    job_started: bool = False
+
+    def reset(self) -> None:
+        """As a new process starts (a test that runs several commands in one process)."""
+        self.sweep_dir, self.job_started = None, False
+        stop.reset()
+
+
+PROCESS = CommandProcess()
+
+
+def _request_stop(signum, frame):
+    """Within a job: remember the signal; the work raises Interrupted at its next safe point (core.stop)."""
+    stop.request(signum)
+
+
+@contextmanager
+def interruptible():
+    """Within: SIGTERM and SIGINT request a stop that the work's safe points turn into Interrupted (Lightning, which
+    installs its own SIGTERM handler during fit, calls this one after its own). The previous handlers return
+    after."""
+    stop.clear()
+    previous = {s: signal.getsignal(s) for s in SIGNALS}
+    for s in SIGNALS:
+        signal.signal(s, _request_stop)
+    try:
+        yield
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+
+
+def children() -> list[int]:
+    """This process's child processes (a parallel sweep's workers), from /proc; [] where there is none."""
+    me, found = str(os.getpid()), []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue
+        if fields[1] == me:
+            found.append(int(stat.parent.name))
+    return found
+
+
+def stop_sweep(signum, frame):
+    """The handler of a process between jobs (a sweep's parent, a parallel worker): remember the signal, mark the
+    sweep as interrupted so jobs not yet started skip, and pass the signal to the running jobs (parallel workers),
+    which record their interruption and return; Hydra then ends the sweep with its summary."""
+    first = stop.received() is None
+    stop.note(signum)
+    sweep_dir = PROCESS.sweep_dir
+    if first and sweep_dir is not None and sweep_dir.is_dir():
+        (sweep_dir / STOP_MARKER).touch()
+    if first:
+        for pid in children():
+            try:
+                os.kill(pid, signum)
+            except OSError:
+                pass
+
+
+def sweep_stopped(sweep_dir: Path) -> bool:
+    """Whether a signal has come, to this process or (the sweep's mark) to any of the sweep's processes."""
+    return stop.received() is not None or (sweep_dir / STOP_MARKER).exists()
+
+
+def fail(message: str, status: int = 2):
+    print(f"error: {message}", file=sys.stderr)
+    if os.environ.get("HYDRA_FULL_ERROR") == "1":
+        traceback.print_exc()
+    sys.exit(status)
+
+
+def _summarise_interrupted_sweep() -> None:
+    """When a parallel sweep's launcher itself broke off (a worker killed by the signal), the summary of the
+    jobs that completed, written here since Hydra's end-of-sweep callback did not run."""
+    sweep_dir = PROCESS.sweep_dir
+    if sweep_dir is None or not sweep_dir.is_dir():
+        return
+    try:
+        from hybrid_sysid.report.summary import write_summary
+
+        write_summary(sweep_dir)
+        print(f"sweep interrupted; summary of the jobs that ended in {sweep_dir}", file=sys.stderr)
+    except Exception as exc:  # noqa: BLE001 - e.g. no job recorded anything yet
+        print(f"sweep interrupted; no summary written ({type(exc).__name__}: {exc})", file=sys.stderr)
+
+
+def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
+    """A console script around a Hydra app: exit status 2 for a config that does not compose (unknown key, wrong
+    type, unknown group option), a missing optional package or an OS error before any job (Hydra itself exits 1
+    for those, like for any failure), and 128 + the signal's number for a job or sweep ended by SIGTERM or
+    SIGINT (a sweep's parent passes the signal to its running jobs, which record it)."""
+    previous = {s: signal.getsignal(s) for s in SIGNALS}
+    for s in SIGNALS:
+        signal.signal(s, stop_sweep)
+    missing = missing_extra(args)
+    if missing:
+        fail(missing)
+    try:
+        hydra_main()
+    except SystemExit as exc:
+        if stop.received() is None and exc.code == 1 and not PROCESS.job_started:
+            sys.exit(2)
+        if stop.received() is None:
+            raise
+    except OSError as exc:
+        if PROCESS.job_started or os.environ.get("HYDRA_FULL_ERROR") == "1":
+            raise
+        fail(f"{type(exc).__name__}: {exc}")
+    except BaseException:
+        if stop.received() is None:
+            raise
+        _summarise_interrupted_sweep()
+    finally:
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    received = stop.received()
+    if received is not None:
+        sys.exit(128 + received)

@@ -1,0 +1,71 @@
+"""A run directory as an estimator: ``load_estimator`` reads the run (runs.rundir.RunDir), builds its network or
+least-squares baseline with the training code's own builders (which refuse a ``_target_`` outside the package's
+allow-list before anything is imported), and loads its weights. Every failure is one InputError naming the run."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import torch
+from omegaconf import DictConfig, OmegaConf
+
+from hybrid_sysid.core.checks import ConfigError, Shown
+from hybrid_sysid.inference.estimator import Estimator
+from hybrid_sysid.inference.inputs import InputError
+from hybrid_sysid.runs.layout import CONFIG
+from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.training.build import build_baseline, build_model
+
+
+def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estimator:
+    """The trained network of a run directory written by ``hybrid-sysid``.
+
+    ``checkpoint``: None takes checkpoints/best.ckpt (what the run's metrics were computed with) or, when the
+    run never validated, last.ckpt; "best" or "last" takes that one. A directory without a config or checkpoint
+    raises InputError (a ValueError) in one line. A baseline run (``baseline=ls_*``: no network) estimates with
+    its least-squares fit (``checkpoint`` is then ignored). The run's metrics.json gives its own test error (the
+    flag run_error)."""
+    run = RunDir(run_dir)
+    cfg = _as_input(run, run.saved_config)
+    try:
+        record = run.record()
+    except ConfigError:  # unreadable: the run's test error is then unknown (the flag run_error says so)
+        record = None
+    if OmegaConf.select(cfg, "baseline", default=None) is not None:
+        net, baseline = None, _as_input(run, build_baseline, cfg)
+    else:
+        net, baseline = _network(cfg, run, checkpoint), None
+    try:
+        return Estimator(net, cfg, baseline=baseline, record=record)
+    except Exception as exc:  # noqa: BLE001 - the data section, read for the trained range, lacks or mistypes keys
+        raise InputError("run", Shown(str(run.path)), f"a run whose {CONFIG} can be read ({_one_line(exc)})") from None
+
+
+def _network(cfg: DictConfig, run: RunDir, checkpoint) -> torch.nn.Module:
+    """The run's network with the checkpoint's weights, built by the code that trained it."""
+    model = _as_input(run, build_model, cfg)  # a class the config names is checked before anything is imported
+    path, state = _as_input(run, run.load_weights, "run", checkpoint)
+    try:
+        model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
+    except RuntimeError as exc:  # another run's checkpoint: torch lists every mismatched key, one line each
+        raise InputError(
+            "run",
+            Shown(str(run.path)),
+            f"a run whose {path.relative_to(run.path)} fits its model.net ({cfg.model.net._target_}): "
+            f"{str(exc).splitlines()[0]}",
+        ) from None
+    return model.net
+
+
+def _as_input(run: RunDir, fn, *args):
+    """``fn(*args)``, its failures as one InputError naming the run."""
+    try:
+        return fn(*args)
+    except ConfigError as exc:
+        raise InputError(exc.key, exc.value, exc.allowed, exc.missing) from None
+    except Exception as exc:  # noqa: BLE001 - a config that parses but lacks or mistypes keys
+        raise InputError("run", Shown(str(run.path)), f"a run whose {CONFIG} can be read ({_one_line(exc)})") from None
+
+
+def _one_line(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {' '.join(str(exc).split())[:300]}"

@@ -1,0 +1,71 @@
+"""The statistics of a comparison table: the Student t interval of a mean over seeds, and the paired test of two
+rows on the per-recording relative deviations they share (scipy.stats)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pandas as pd
+
+CONFIDENCE = 0.95  # of the interval over seeds
+ALPHA = 0.05  # the paired test's level for †
+K_LEVEL = "K"  # the row level of test-time windows per recording, when several are present
+NO_KEYS = "all"  # the single row label when no override varies across runs
+
+
+def t_interval(values) -> tuple[float, float]:
+    """The CONFIDENCE Student t interval of the mean of values (NaN, NaN with fewer than two)."""
+    v = np.asarray(values, dtype=float)
+    if len(v) < 2:
+        return math.nan, math.nan
+    if np.ptp(v) == 0:  # seeds that agree (a baseline without randomness): the interval is the value itself
+        return float(v[0]), float(v[0])
+    from scipy import stats  # here: importing the report's tables loads no scipy
+
+    low, high = stats.t.interval(CONFIDENCE, len(v) - 1, loc=v.mean(), scale=stats.sem(v))
+    return float(low), float(high)
+
+
+def paired_deviations(preds: pd.DataFrame, df: pd.DataFrame, table: pd.DataFrame) -> dict:
+    """For the paired test: table row label -> DataFrame (index recording, columns (noise_std, parameter)) of
+    the per-recording relative deviations averaged over the row's seeds. ``preds``: collect.load_predictions;
+    ``df``: collect's long form, which gives each run its row."""
+    if preds.empty:
+        return {}
+    names = [str(n) for n in table.index.names]
+    keys = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
+    runs = df.drop_duplicates("run").set_index("run")[keys] if keys else None
+    p = preds.join(runs, on="run") if keys else preds.assign(**{NO_KEYS: NO_KEYS})
+    if K_LEVEL in names:
+        p = p.assign(**{K_LEVEL: p.windows})
+    rows = [n for n in names]
+    mean = p.groupby(rows + ["recording", "noise_std", "parameter"]).rel_dev.mean().unstack(["noise_std", "parameter"])
+    out = {}
+    for label, frame in mean.groupby(level=rows if len(rows) > 1 else rows[0]):
+        out[label] = frame.droplevel(rows)
+    return out
+
+
+def wilcoxon_p(a, b) -> float:
+    """Two-sided p-value of the Wilcoxon signed-rank test of paired samples; 1 when they are equal."""
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    if not np.any(d):
+        return 1.0
+    from scipy import stats
+
+    return float(stats.wilcoxon(a, b).pvalue)
+
+
+def paired_p(paired: dict | None, label_a, label_b, col) -> float | None:
+    """The paired test's p-value between two rows in a column, None when either lacks per-recording data or
+    they do not share their recordings."""
+    if not paired or label_a not in paired or label_b not in paired:
+        return None
+    a, b = paired[label_a], paired[label_b]
+    if col not in a.columns or col not in b.columns:
+        return None
+    a, b = a[col].dropna(), b[col].dropna()
+    if len(a) < 2 or not a.index.sort_values().equals(b.index.sort_values()):
+        return None
+    return wilcoxon_p(a.sort_index().to_numpy(), b.sort_index().to_numpy())

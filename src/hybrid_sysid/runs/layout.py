@@ -1,0 +1,26 @@
+"""Every file name of a run or sweep directory, spelled here alone (the readers and writers are RunDir and
+SweepDir beside it)::
+
+    <run>/.hydra/config.yaml      the composed config the run was made with (Hydra writes it before the job)
+    <run>/.hydra/overrides.yaml   its command-line overrides
+    <run>/.hydra/hydra.yaml       Hydra's own settings (the group choices)
+    <run>/checkpoints/best.ckpt   the weights model selection chose; last.ckpt: the newest training state
+    <run>/metrics.json            the record (runs.records), written last
+    <run>/predictions.csv         one row per recording and evaluation; curves.csv: the learning curves
+    <run>/figures/                the run's figures (report.run_figures)
+    <sweep>/multirun.yaml         Hydra's record of the sweep's command line
+"""
+
+CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
+RECORD = "metrics.json"
+PREDICTIONS, CURVES = "predictions.csv", "curves.csv"
+FIGURES = "figures"
+CHECKPOINTS = "checkpoints"
+BEST, LAST = "best.ckpt", "last.ckpt"
+TRAINED = (BEST, LAST)  # the weights a trained run is used with: best, else last
+WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one process that writes there
+SWEEP_CONFIG = "multirun.yaml"
+STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted, jobs not yet started skip
+PROGRESS = ".progress"  # in a sweep directory: a JSON line (jobs, swept keys, start), then one line per ended job
+# what a run's MLflow run keeps of its files: the file -> its folder among the artifacts
+TRACKED = {RECORD: "", CURVES: "", CONFIG: "config", OVERRIDES: "config", HYDRA: "config"}
