@@ -8,7 +8,7 @@ two, ``estimator`` (a trained run as a tool: ``load_estimator``) and ``predict``
 command). ``files`` holds the atomic writer any layer may use. docs/design.md describes each.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"
 
 
 def __getattr__(name):

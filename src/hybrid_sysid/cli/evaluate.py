@@ -20,13 +20,14 @@ import hydra
 from hydra.core.hydra_config import HydraConfig
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
+from omegaconf.errors import OmegaConfBaseException
 
 from hybrid_sysid import config
 from hybrid_sysid.cli.job import draws_figures, run_job
 from hybrid_sysid.cli.preflight import Preflight
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import Config, validate
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -44,7 +45,16 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
     """The run's saved config with the overridden keys taken from ``composed`` (the eval app's config, in
     which Hydra has composed the overrides). A key outside OVERRIDABLE raises ConfigError."""
     base = RunDir(run_dir).saved_config("run")
-    cfg = OmegaConf.merge(OmegaConf.structured(Config), {k: v for k, v in base.items() if k != "hydra"})
+    try:
+        cfg = OmegaConf.merge(OmegaConf.structured(Config), {k: v for k, v in base.items() if k != "hydra"})
+    except OmegaConfBaseException as exc:  # a key or a type this version does not have
+        where = getattr(exc, "full_key", None) or "a key"
+        bad(
+            "run",
+            Shown(str(run_dir)),
+            f"a run whose saved config this version reads ({where}: {type(exc).__name__}; a run saved by another "
+            "version of hybrid-sysid, whose keys have changed since)",
+        )
     for key in override_keys(overrides):
         top = key.split(".")[0]
         if key == "run" or top == "hydra":

@@ -1,15 +1,18 @@
-"""The classes a config may name by ``_target_``: this package's networks, objectives and baselines, and
+"""The classes a config may name by ``_target_``: this package's networks, objectives and baselines (any class of
+hybrid_sysid.model or hybrid_sysid.baselines that provides what its key asks: model/base.py), and a list of
 Lightning's loggers and callbacks. Nothing else is ever imported or called from a config.
 
 A run directory is data a user may have received from someone else (its .hydra/config.yaml is read by
-hybrid-sysid-eval, hybrid-sysid-predict, load_estimator, init_from and resume=), so a ``_target_`` is looked up
-here by name before anything is imported: any other name is a one-line ConfigError naming the key. Arguments
-are plain values; a nested ``_target_`` (an argument that would build another object) is refused the same way.
+hybrid-sysid-eval, hybrid-sysid-predict, load_estimator, init_from and resume=), so a ``_target_`` is checked by
+name before anything outside this package is imported: any other name is a one-line ConfigError naming the key.
+Arguments are plain values; a nested ``_target_`` (an argument that would build another object) is refused the
+same way. A new network or objective of this package is one module of hybrid_sysid.model and one YAML file.
 """
 
 from __future__ import annotations
 
 import importlib
+import importlib.util
 import inspect
 
 from omegaconf import DictConfig, OmegaConf
@@ -17,21 +20,20 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.model.base import Baseline, Network, Objective, lacks
 
-_NETWORKS = ("FastCNN", "PaperCNN")
-_OBJECTIVES = ("LabelledObjective", "HybridObjective", "CombinedObjective")
+# config key -> (the package whose classes it may name, what such a class must provide)
+OWN = {
+    "model.net": ("hybrid_sysid.model", Network),
+    "objective": ("hybrid_sysid.model", Objective),
+    "baseline": ("hybrid_sysid.baselines", Baseline),
+}
 _LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
 _CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")
-# config key -> {the _target_ a config may give: (module, class name)}
-KNOWN: dict[str, dict[str, tuple[str, str]]] = {
-    "model.net": {f"hybrid_sysid.model.networks.{n}": ("hybrid_sysid.model.networks", n) for n in _NETWORKS},
-    "objective": {f"hybrid_sysid.model.objectives.{n}": ("hybrid_sysid.model.objectives", n) for n in _OBJECTIVES},
-    "baseline": {"hybrid_sysid.baselines.LeastSquaresFit": ("hybrid_sysid.baselines.least_squares", "LeastSquaresFit")},
+# config key -> {the _target_ of a library's class a config may give: (module, class name)}
+LIBRARY: dict[str, dict[str, tuple[str, str]]] = {
     "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in _LOGGERS},
     "callbacks": {f"lightning.pytorch.callbacks.{n}": ("lightning.pytorch.callbacks", n) for n in _CALLBACKS},
 }
 FAMILIES = ("logger", "callbacks")  # a mapping of names, each to a _target_: logger.<name>, callbacks.<name>
-# what a class at each key must provide (hybrid_sysid.model.base)
-INTERFACES = {"model.net": Network, "objective": Objective, "baseline": Baseline}
 
 
 def _family(key: str) -> str:
@@ -40,24 +42,43 @@ def _family(key: str) -> str:
 
 
 def check_target(target, key: str) -> None:
-    """ConfigError unless ``target`` is one of KNOWN for ``key``; imports nothing."""
-    allowed = KNOWN[_family(key)]
+    """ConfigError unless ``target`` may be named at ``key``: a class path in this package's own (OWN; the module
+    must exist) or one of LIBRARY's names. Imports nothing outside this package."""
+    family = _family(key)
+    if family in OWN:
+        package = OWN[family][0]
+        parts = target.split(".") if isinstance(target, str) else []
+        module = ".".join(parts[:-1])
+        if (
+            not target.startswith(package + ".")
+            or not all(p.isidentifier() and not p.startswith("_") for p in parts)
+            or importlib.util.find_spec(module) is None
+        ):
+            bad(f"{key}._target_", target, f"a class of {package} (a config names only this package's classes)")
+        return
+    allowed = LIBRARY[family]
     if not isinstance(target, str) or target not in allowed:
         bad(
             f"{key}._target_",
             target,
-            f"one of {', '.join(sorted(allowed))} (a config names only this package's classes)",
+            f"one of {', '.join(sorted(allowed))} (a config names only this package's and these classes)",
         )
 
 
 def known_class(target, key: str) -> type:
-    """The class a ``_target_`` at ``key`` names, imported only when it is one of KNOWN, and holding every member
-    of its key's interface (INTERFACES); ConfigError otherwise."""
+    """The class a ``_target_`` at ``key`` names, imported once check_target lets it, and holding every member of
+    what its key asks (OWN: model/base.py); ConfigError otherwise."""
     check_target(target, key)
-    module, name = KNOWN[_family(key)][target]
-    cls = getattr(importlib.import_module(module), name)
-    interface = INTERFACES.get(_family(key))
-    missing = lacks(cls, interface) if interface is not None else []
+    family = _family(key)
+    if family not in OWN:
+        module, name = LIBRARY[family][target]
+        return getattr(importlib.import_module(module), name)
+    package, interface = OWN[family]
+    module, name = target.rsplit(".", 1)
+    cls = getattr(importlib.import_module(module), name, None)
+    if not (inspect.isclass(cls) and cls.__module__.startswith(package + ".")):
+        bad(f"{key}._target_", target, f"a class of {package} (there is none of that name)")
+    missing = lacks(cls, interface)
     if missing:
         bad(f"{key}._target_", target, f"a class with {', '.join(missing)} ({interface.__name__}, model/base.py)")
     return cls

@@ -7,12 +7,12 @@ from __future__ import annotations
 from pathlib import Path
 
 import pandas as pd
-import yaml
 
 from hybrid_sysid.report.extras import Extra, register
 from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
+from hybrid_sysid.runs.rundir import read_yaml
 
 TUNING = "tuning"  # the row key of its sub-runs: default or tuned
 
@@ -21,7 +21,7 @@ def searches(paths) -> list[tuple[str, dict]]:
     """(job directory, best.yaml) for every search at or below paths, in path order."""
     paths = [Path(paths)] if isinstance(paths, (str, Path)) else [Path(p) for p in paths]
     found = sorted({f.resolve() for p in paths for f in p.rglob("search/best.yaml")})
-    return [(f.parent.parent.name, yaml.safe_load(f.read_text())) for f in found]
+    return [(f.parent.parent.name, read_yaml(f) or {}) for f in found]
 
 
 def _g(value) -> str:
