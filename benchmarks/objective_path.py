@@ -5,10 +5,10 @@ that run, in this process, with a profiler that notes the first call of every pa
 the objective: the config holding it (a DictConfig with an ``objective`` key, or the objective's own node), the
 objective object (anything with ``uses_labels``), a list of overrides naming it, or a table with its column.
 
-Printed: the stops (those first calls, in order), the files they lie in, the climbs (a stop in a file on a
-higher floor than the stop before it; a file's floor is 1 + the highest floor of the package files it imports)
-and the returns (a stop in a file the path had entered and left before). Fewer of each is a path that reads
-straight down the layers. ``--list`` prints the stops.
+Printed: the stops (those first calls, in order), the files they lie in, the climbs (a stop on a higher floor than
+the stop before it; the floors are the package's folders, its layers, each 1 + the highest floor of the folders
+it imports) and the returns (a stop in a file the path had entered and left before). Fewer of each is a path that
+reads straight down the layers. ``--list`` prints the stops.
 
     python benchmarks/objective_path.py [--list]
 """
@@ -25,38 +25,37 @@ from pathlib import Path
 SRC = Path(__file__).resolve().parents[1] / "src" / "hybrid_sysid"
 
 
-def module_files() -> dict[str, Path]:
-    out = {}
+def folder_of(path: Path) -> str:
+    """A file's room: its folder under the package (a layer: core, physics, data, ...), or the package's own
+    files at the top (__init__, __main__)."""
+    rel = path.relative_to(SRC)
+    return rel.parts[0] if len(rel.parts) > 1 else rel.stem
+
+
+def floors() -> dict[str, int]:
+    """Each folder's floor: 1 for a folder that imports no other folder of the package, else 1 + the highest
+    floor of the folders it imports (lazy imports inside functions count)."""
+    imports: dict[str, set[str]] = {}
     for path in SRC.rglob("*.py"):
-        rel = path.relative_to(SRC.parent).with_suffix("")
-        parts = rel.parts[:-1] if rel.parts[-1] == "__init__" else rel.parts
-        out[".".join(parts)] = path
-    return out
-
-
-def floors() -> dict[Path, int]:
-    """Each package file's floor: 1 for a file that imports no package file, else 1 + the highest floor of
-    those it imports (lazy imports inside functions count)."""
-    files = module_files()
-    imports: dict[Path, set[Path]] = {}
-    for path in files.values():
-        found = set()
+        room = folder_of(path)
+        found = imports.setdefault(room, set())
         for node in ast.walk(ast.parse(path.read_text())):
-            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("hybrid_sysid"):
-                subs = [f"{node.module}.{a.name}" for a in node.names if f"{node.module}.{a.name}" in files]
-                found.update(files[m] for m in (subs or [node.module]) if m in files)
+            names = []
+            if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("hybrid_sysid."):
+                names = [node.module]
             elif isinstance(node, ast.Import):
-                found.update(files[a.name] for a in node.names if a.name in files)
-        imports[path] = found - {path}
-    memo: dict[Path, int] = {}
+                names = [a.name for a in node.names if a.name.startswith("hybrid_sysid.")]
+            found.update(n.split(".")[1] for n in names)
+        found.discard(room)
+    memo: dict[str, int] = {}
 
-    def floor(path: Path, seen=()) -> int:
-        if path not in memo:
-            below = [floor(p, (*seen, path)) for p in imports[path] if p not in seen]
-            memo[path] = 1 + max(below, default=0)
-        return memo[path]
+    def floor(room: str, seen=()) -> int:
+        if room not in memo:
+            below = [floor(r, (*seen, room)) for r in imports.get(room, ()) if r in imports and r not in seen]
+            memo[room] = 1 + max(below, default=0)
+        return memo[room]
 
-    return {path: floor(path) for path in imports}
+    return {room: floor(room) for room in imports}
 
 
 def carries_objective(value) -> bool:
@@ -139,7 +138,8 @@ def main() -> None:
         os.environ.pop("HYDRA_FULL_ERROR", None)
         stops = trace(lambda: run(Path(tmp)))
     files = [path for path, _ in stops]
-    climbs = sum(level[b] > level[a] for a, b in zip(files, files[1:]))
+    rooms = [level[folder_of(p)] for p in files]
+    climbs = sum(b > a for a, b in zip(rooms, rooms[1:]))
     returns, left = 0, set()
     for a, b in zip(files, files[1:]):
         if b != a:
@@ -147,7 +147,7 @@ def main() -> None:
             left.add(a)
     if args.list:
         for path, name in stops:
-            print(f"  floor {level[path]:2d}  {path.relative_to(SRC.parent)}:{name}")
+            print(f"  floor {level[folder_of(path)]:2d}  {path.relative_to(SRC.parent)}:{name}")
     print(
         f"objective from the command line to the table: {len(stops)} stops in {len(set(files))} files, "
         f"{climbs} climbs back up, {returns} returns to a file already left"

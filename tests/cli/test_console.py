@@ -151,7 +151,7 @@ def test_a_missing_extra_names_the_install_command_of_this_install(monkeypatch, 
     import importlib.metadata
     from types import SimpleNamespace
 
-    from hybrid_sysid.cli import extras as job
+    from hybrid_sysid.cli import process as job
 
     text = None if direct_url is None else json.dumps(direct_url)
     monkeypatch.setattr(importlib.metadata, "distribution", lambda name: SimpleNamespace(read_text=lambda f: text))

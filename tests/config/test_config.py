@@ -147,7 +147,7 @@ def test_the_size_bound_compares_with_the_memory_available(make_cfg, monkeypatch
 
     cfg = make_cfg("data=tiny")  # 6 roads * 8 masses * 400 steps
     need = 6 * 8 * 400 * 4 * 8 + 2 * 6 * 400 * 8  # the channels at 8 bytes, the road profiles twice
-    assert config.dataset_bytes(cfg) == need
+    assert config.dataset_bytes(6, 8, 400) == need
     monkeypatch.setattr(config, "available_memory", lambda: need - 1)
     with pytest.raises(ConfigError, match="data.n_roads \\* data.n_masses \\* data.n_steps"):
         validate(cfg)

@@ -69,8 +69,8 @@ TERMINATED = textwrap.dedent("""
     from hydra.core.hydra_config import HydraConfig
     from hybrid_sysid.training import run as train
     build_model = train.build_model
-    def build(cfg):
-        model = build_model(cfg)
+    def build(cfg, *args):
+        model = build_model(cfg, *args)
         if HydraConfig.get().job.num == 1:
             step, calls = model.training_step, []
             def terminated(*args, **kwargs):

@@ -173,10 +173,10 @@ def test_a_failed_trial_is_recorded_and_the_study_goes_on(make_cfg, tmp_path, mo
 
     build_model = train_module.build_model
 
-    def failing(cfg):  # the seeded sampler's first draw after the defaults has 16 channels
+    def failing(cfg, *args):  # the seeded sampler's first draw after the defaults has 16 channels
         if cfg.model.net.channels == 16:
             raise RuntimeError("a failing trial")
-        return build_model(cfg)
+        return build_model(cfg, *args)
 
     monkeypatch.setattr(train_module, "build_model", failing)
     cfg = make_cfg(*TINY, "tuned.n_trials=2")

@@ -11,9 +11,8 @@ import pytest
 import torch
 
 from hybrid_sysid.config import ConfigError
-from hybrid_sysid.runs.records import CompletedRecordError, run_record
 from hybrid_sysid.runs.resume import check_resume
-from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.rundir import CompletedRecordError, RunDir, run_record
 
 TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=20", "trainer.eval_every_n_steps=10"]
 

@@ -113,7 +113,7 @@ def test_a_logger_without_its_library_is_a_one_line_error(make_cfg, monkeypatch)
 
 
 def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
-    from hybrid_sysid.cli import extras as app
+    from hybrid_sysid.cli import process as app
 
     monkeypatch.setattr(app, "installed", lambda module: False)
     assert (

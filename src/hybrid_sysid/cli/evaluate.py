@@ -23,8 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import draws_figures, run_job
-from hybrid_sysid.cli.preflight import Preflight
+from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import Config, validate
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
@@ -74,7 +73,7 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
 
 
 class EvalPreflight(Preflight):
-    """Preflight (hybrid_sysid.cli.preflight) that also builds and checks the config to evaluate."""
+    """Preflight (hybrid_sysid.cli.job) that also builds and checks the config to evaluate."""
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         if OmegaConf.is_missing(cfg, "run"):

@@ -5,11 +5,13 @@ not compose or an OS error before any job; 128 + the signal's number for a job o
 
 Within a job, SIGTERM and SIGINT only request a stop that the work's safe points raise (core.stop); between jobs
 (a sweep's parent, a parallel worker) they mark the sweep interrupted, so jobs not yet started skip, and pass the
-signal to the running jobs, which record their interruption.
+signal to the running jobs, which record their interruption. An option whose optional package is missing is one
+line before Hydra starts (``missing_extra``).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import os
 import signal
 import sys
@@ -19,11 +21,42 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from hybrid_sysid.cli.extras import missing_extra
 from hybrid_sysid.core import stop
+from hybrid_sysid.core.install import install_command
 from hybrid_sysid.runs.layout import STOP_MARKER
 
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
+
+
+# an option that needs an optional package -> (the module it needs, the extra that brings it)
+EXTRAS = {
+    "hparams_search=": ("optuna", "search"),
+    "hydra/sweeper=study": ("optuna", "search"),
+    "experiment=tuned": ("optuna", "search"),
+    "callbacks=rich_progress_bar": ("rich", "rich"),
+    "launcher=slurm": ("hydra_plugins.hydra_submitit_launcher", "slurm"),
+    "launcher=submitit_local": ("hydra_plugins.hydra_submitit_launcher", "slurm"),
+}
+
+
+def missing_extra(args) -> str | None:
+    """A one-line error for the first command-line option whose optional package is not installed (Hydra itself
+    would fail on it with a long message on the config search path), else None. The pip command fits the user's
+    own install: ``pip install -e ".[search]"`` in an editable checkout, ``pip install "hybrid-sysid[search]"``
+    for a wheel (hybrid_sysid.core.install)."""
+    for arg in args:
+        for prefix, (module, extra) in EXTRAS.items():
+            if arg.lstrip("+~").startswith(prefix) and not installed(module):
+                name = module.split(".")[-1].replace("_", "-")
+                return f"{arg} needs {name}, which is not installed: {install_command(extra)}"
+    return None
+
+
+def installed(module: str) -> bool:
+    try:
+        return importlib.util.find_spec(module) is not None
+    except ModuleNotFoundError:  # its parent package is missing
+        return False
 
 
 @dataclass

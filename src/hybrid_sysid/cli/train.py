@@ -21,8 +21,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import draws_figures, run_job
-from hybrid_sysid.cli.preflight import Preflight
+from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import validate
 from hybrid_sysid.runs.rundir import RunDir
@@ -31,7 +30,7 @@ log = logging.getLogger("hybrid_sysid")
 
 
 class TrainPreflight(Preflight):
-    """Preflight (hybrid_sysid.cli.preflight) that also checks the config's values and its ``resume=`` directory."""
+    """Preflight (hybrid_sysid.cli.job) that also checks the config's values and its ``resume=`` directory."""
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
@@ -45,11 +44,10 @@ class TrainPreflight(Preflight):
             check_resume(RunDir(str(cfg.resume)), cfg, overrides)
 
 
-def run_task(
-    cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, experiment: str | None, run_name: str | None
-) -> dict:
+def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, hc=None) -> dict:
     """The job's task (``task``): imported here, so a sweep's parent process, which only composes and launches
-    jobs, loads no torch."""
+    jobs, loads no torch. ``hc``: the job's Hydra config, which names it in an experiment tracker (a sweep's jobs
+    are runs of one experiment, <preset>:<sweep>, named by their differing overrides)."""
     if cfg.task == "transfer":
         from hybrid_sysid.experiments.transfer import run_chain as chain
     elif cfg.task == "tuned":
@@ -61,8 +59,11 @@ def run_task(
         result = chain(cfg, run_dir, overrides)
         RunDir(run_dir).drop_stale_record()  # an earlier interruption's record: every run it named is done now
         return result
+    from hybrid_sysid.training.tracking import job_naming
+
+    naming = job_naming(hc) if hc is not None and cfg.get("logger") else None  # names only a tracker needs
     # a single run's config was validated by the preflight; a sweep's job has had no preflight
-    return train(cfg, run_dir, overrides, experiment=experiment, run_name=run_name, checked=not multirun)
+    return train(cfg, run_dir, overrides, experiment=naming, checked=not multirun)
 
 
 def freeze_imports() -> None:
@@ -81,12 +82,8 @@ def hydra_main(cfg: DictConfig) -> Any:
     run_dir, overrides = Path(hc.runtime.output_dir), list(hc.overrides.task)
     multirun = hc.mode == RunMode.MULTIRUN
     sweep_dir = Path(hc.sweep.dir) if multirun else None
-    # in a tracker, a sweep's jobs are runs of one experiment (<preset>:<sweep>) named by their differing overrides
-    from hybrid_sysid.training.tracking import job_naming, log_run_figures
-
-    experiment = job_naming(hc)
     record = run_job(
-        lambda: run_task(cfg, run_dir, overrides, multirun, experiment, experiment.run),
+        lambda: run_task(cfg, run_dir, overrides, multirun, hc),
         run_dir,
         overrides,
         cfg.get("seed", 0),
@@ -96,6 +93,8 @@ def hydra_main(cfg: DictConfig) -> Any:
     )
     draw = draws_figures(cfg.get("run_figures", "auto"), multirun)
     if draw and cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
+        from hybrid_sysid.training.tracking import log_run_figures
+
         _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
         log_run_figures(run_dir)  # into the job's MLflow run, now that they exist
     return record

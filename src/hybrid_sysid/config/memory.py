@@ -5,8 +5,6 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-from omegaconf import DictConfig
-
 from hybrid_sysid.core.checks import bad
 from hybrid_sysid.data.dataset import CHANNELS
 
@@ -34,22 +32,20 @@ def available_memory() -> int | None:
     return min(found) if found else None
 
 
-def dataset_bytes(cfg: DictConfig) -> int:
+def dataset_bytes(n_roads: int, n_masses: int, n_steps: int) -> int:
     """What a dataset needs in memory while it is simulated and stored: every channel of every recording at
     8 bytes (float32 channels, plus the copy that checksums or loads them) and the float64 road profiles
     (twice: the profile and the wave sum it is built from)."""
-    d = cfg.data
-    n_recordings = d.n_roads * d.n_masses
-    return n_recordings * d.n_steps * len(CHANNELS) * 8 + 2 * d.n_roads * d.n_steps * 8
+    return n_roads * n_masses * n_steps * len(CHANNELS) * 8 + 2 * n_roads * n_steps * 8
 
 
-def check_memory(cfg: DictConfig) -> None:
-    need, available = dataset_bytes(cfg), available_memory()
+def check_memory(n_roads: int, n_masses: int, n_steps: int) -> None:
+    """The dataset of data.n_roads x data.n_masses x data.n_steps fits in the memory available."""
+    need, available = dataset_bytes(n_roads, n_masses, n_steps), available_memory()
     if available is not None and need > available:
-        d = cfg.data
         bad(
             "data.n_roads * data.n_masses * data.n_steps",
-            f"{d.n_roads} * {d.n_masses} * {d.n_steps}",
+            f"{n_roads} * {n_masses} * {n_steps}",
             f"the dataset needs about {need / 2**30:.3g} GiB, more than the {available / 2**30:.3g} GiB of "
             "memory available",
         )

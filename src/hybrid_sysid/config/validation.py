@@ -10,16 +10,17 @@ the trainer, the memory bound).
 from __future__ import annotations
 
 import difflib
+import importlib.util
 import math
 from dataclasses import asdict, fields
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config.extras import validate_callbacks, validate_loggers
 from hybrid_sysid.config.memory import check_memory
 from hybrid_sysid.config.schema import SECTIONS
-from hybrid_sysid.config.targets import arguments, build
+from hybrid_sysid.config.targets import arguments, build, check_target
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
+from hybrid_sysid.core.install import install_command
 from hybrid_sysid.core.options import MONITORS, PROFILERS, TASKS
 from hybrid_sysid.data.spec import SEED_MAX, BatchSettings, DatasetSpec, WindowSettings, check_eval_windows
 from hybrid_sysid.model.optim import OptimSettings
@@ -42,11 +43,6 @@ def config_key(key: str) -> str:
     return CONFIG_PATHS.get(key, f"data.{key}")
 
 
-def window_settings(cfg: DictConfig) -> WindowSettings:
-    """The data section's WindowSettings, read by field name."""
-    return WindowSettings(**{f.name: cfg.data[f.name] for f in fields(WindowSettings)})
-
-
 def validate(cfg: DictConfig) -> None:
     """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed."""
     _check_known_keys(cfg)
@@ -67,6 +63,7 @@ def validate(cfg: DictConfig) -> None:
         OptimSettings(**cfg.model.optim).validate()
     validate_loggers(cfg)
     validate_callbacks(cfg)
+    check_memory(cfg.data.n_roads, cfg.data.n_masses, cfg.data.n_steps)  # against the memory the process may use
     spec = DatasetSpec.from_config(cfg)
     with _placed():
         BatchSettings(cfg.model.batch_size, cfg.noise.train_std).validate()
@@ -75,8 +72,7 @@ def validate(cfg: DictConfig) -> None:
         _validate_baseline(cfg, spec)
     else:
         _validate_training(cfg, spec)
-    check_eval_windows(cfg.evaluation.windows, window_settings(cfg).n_starts(spec), "evaluation.windows")
-    check_memory(cfg)
+    check_eval_windows(cfg.evaluation.windows, WindowSettings.from_config(cfg).n_starts(spec), "evaluation.windows")
 
 
 class _placed:
@@ -200,7 +196,7 @@ def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
         raise ConfigError("model.net", allowed=_one_line(exc)) from exc
     objective = _built(cfg, "objective")
     with _placed():
-        window_settings(cfg).validate(spec, bounds, None if objective.fir is None else len(objective.fir))
+        WindowSettings.from_config(cfg).validate(spec, bounds, None if objective.fir is None else len(objective.fir))
     import torch
 
     net = _built(cfg, "model.net")
@@ -223,7 +219,45 @@ def _validate_baseline(cfg: DictConfig, spec: DatasetSpec) -> None:
             "use unknown=p",
         )
     with _placed():
-        window_settings(cfg).validate(spec)
+        WindowSettings.from_config(cfg).validate(spec)
     baseline = _built(cfg, "baseline")
     with _placed("baseline"):
         baseline.check_lengths(cfg.data.window, cfg.data.n_steps)
+
+
+# a logger class -> the modules it can run on (any one of them); they come with the "loggers" extra
+LOGGER_MODULES = {"TensorBoardLogger": ("tensorboard", "tensorboardX"), "MLFlowLogger": ("mlflow",)}
+# a callback class -> the module it needs; it comes with the "rich" extra
+CALLBACK_MODULES = {"RichProgressBar": "rich", "RichModelSummary": "rich"}
+
+
+def validate_loggers(cfg: DictConfig) -> None:
+    """Each configured logger names a class, and the library it needs is installed."""
+    for name, lg in (cfg.get("logger") or {}).items():
+        target = str(lg.get("_target_", "")) if isinstance(lg, DictConfig) else ""
+        if not target:
+            bad(f"logger.{name}", lg, "a mapping with the _target_ of a Lightning logger (see conf/logger)")
+        check_target(target, f"logger.{name}")
+        needs = next((mods for cls, mods in LOGGER_MODULES.items() if target.endswith("." + cls)), ())
+        if needs and not any(importlib.util.find_spec(m) for m in needs):
+            raise ConfigError(
+                f"logger.{name}",
+                allowed=f"it needs the {needs[0]} package, not installed: {install_command('loggers')}",
+            )
+
+
+def validate_callbacks(cfg: DictConfig) -> None:
+    """Each configured callback (conf/callbacks) names an allowed class, the library it needs is installed, and
+    a monitor it watches is one trainer.monitor may name (auto: the run's own)."""
+    for name, cb in (cfg.get("callbacks") or {}).items():
+        target = str(cb.get("_target_", "")) if isinstance(cb, DictConfig) else ""
+        if not target:
+            bad(f"callbacks.{name}", cb, "a mapping with the _target_ of a Lightning callback (see conf/callbacks)")
+        check_target(target, f"callbacks.{name}")
+        module = CALLBACK_MODULES.get(target.rsplit(".", 1)[-1])
+        if module and not importlib.util.find_spec(module):
+            raise ConfigError(
+                f"callbacks.{name}", allowed=f"it needs the {module} package, not installed: {install_command('rich')}"
+            )
+        if "monitor" in cb:
+            check_choice(f"callbacks.{name}.monitor", cb.monitor, MONITORS)

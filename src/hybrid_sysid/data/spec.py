@@ -139,6 +139,11 @@ class WindowSettings:
         self.split(spec)
         check_filter_fits(taps, self.window, "taps", "window")
 
+    @classmethod
+    def from_config(cls, cfg) -> "WindowSettings":
+        """The settings of a composed config: its data section's keys of the same names."""
+        return cls(**{f.name: cfg.data[f.name] for f in fields(cls)})
+
     def split(self, spec: DatasetSpec) -> Split:
         """Train, validation and test recordings of the dataset: by road and per road class (data.splits)."""
         return split_by_road(spec.n_roads, spec.n_masses, self.train_fraction, self.val_fraction, spec.road_class())

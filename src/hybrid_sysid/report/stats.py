@@ -1,12 +1,11 @@
 """The statistics of a comparison table: the Student t interval of a mean over seeds, and the paired test of two
-rows on the per-recording relative deviations they share (scipy.stats)."""
+rows on the per-recording relative deviations they share (scipy.stats; the deviations: tables.paired_deviations)."""
 
 from __future__ import annotations
 
 import math
 
 import numpy as np
-import pandas as pd
 
 CONFIDENCE = 0.95  # of the interval over seeds
 ALPHA = 0.05  # the paired test's level for †
@@ -25,26 +24,6 @@ def t_interval(values) -> tuple[float, float]:
 
     low, high = stats.t.interval(CONFIDENCE, len(v) - 1, loc=v.mean(), scale=stats.sem(v))
     return float(low), float(high)
-
-
-def paired_deviations(preds: pd.DataFrame, df: pd.DataFrame, table: pd.DataFrame) -> dict:
-    """For the paired test: table row label -> DataFrame (index recording, columns (noise_std, parameter)) of
-    the per-recording relative deviations averaged over the row's seeds. ``preds``: collect.load_predictions;
-    ``df``: collect's long form, which gives each run its row."""
-    if preds.empty:
-        return {}
-    names = [str(n) for n in table.index.names]
-    keys = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
-    runs = df.drop_duplicates("run").set_index("run")[keys] if keys else None
-    p = preds.join(runs, on="run") if keys else preds.assign(**{NO_KEYS: NO_KEYS})
-    if K_LEVEL in names:
-        p = p.assign(**{K_LEVEL: p.windows})
-    rows = [n for n in names]
-    mean = p.groupby(rows + ["recording", "noise_std", "parameter"]).rel_dev.mean().unstack(["noise_std", "parameter"])
-    out = {}
-    for label, frame in mean.groupby(level=rows if len(rows) > 1 else rows[0]):
-        out[label] = frame.droplevel(rows)
-    return out
 
 
 def wilcoxon_p(a, b) -> float:

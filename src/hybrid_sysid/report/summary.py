@@ -14,8 +14,8 @@ from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
 from hybrid_sysid.report.extras import extras_of
 from hybrid_sysid.report.latex import to_latex
 from hybrid_sysid.report.markdown import to_markdown
-from hybrid_sysid.report.stats import K_LEVEL, paired_deviations
-from hybrid_sysid.report.tables import METRICS, compared_level, row_label, summary_table
+from hybrid_sysid.report.stats import K_LEVEL
+from hybrid_sysid.report.tables import METRICS, compared_level, paired_deviations, row_label, summary_table
 from hybrid_sysid.runs.layout import CURVES, FIGURES
 from hybrid_sysid.runs.rundir import RunDir
 
@@ -91,7 +91,7 @@ def write_summary(
     below paths (default: sweep_dir), but those whose name (relative to the common parent, e.g. "0/search/3")
     matches a glob pattern of ``exclude``. ``compare``: the row key whose values the marks compare (default:
     objective when swept). Returns (long form, table); the table's attrs["paired"] holds the per-recording
-    deviations its marks test (stats.paired_deviations), attrs["sections"] the sections in words an experiment
+    deviations its marks test (tables.paired_deviations), attrs["sections"] the sections in words an experiment
     adds (report.extras).
     ``on_table(df, table)`` is called once the summary files are written, before the figures are drawn (a sweep
     prints its table there)."""

@@ -75,6 +75,26 @@ def summary_table(df: pd.DataFrame, split: str = "test", metric: str = "mean_rel
     return table.iloc[sorted(range(len(table)), key=lambda i: natural_key(table.index[i]))]
 
 
+def paired_deviations(preds: pd.DataFrame, df: pd.DataFrame, table: pd.DataFrame) -> dict:
+    """For the paired test: table row label -> DataFrame (index recording, columns (noise_std, parameter)) of
+    the per-recording relative deviations averaged over the row's seeds. ``preds``: collect.load_predictions;
+    ``df``: collect's long form, which gives each run its row."""
+    if preds.empty:
+        return {}
+    names = [str(n) for n in table.index.names]
+    keys = [n for n in names if n not in (K_LEVEL, NO_KEYS)]
+    runs = df.drop_duplicates("run").set_index("run")[keys] if keys else None
+    p = preds.join(runs, on="run") if keys else preds.assign(**{NO_KEYS: NO_KEYS})
+    if K_LEVEL in names:
+        p = p.assign(**{K_LEVEL: p.windows})
+    rows = [n for n in names]
+    mean = p.groupby(rows + ["recording", "noise_std", "parameter"]).rel_dev.mean().unstack(["noise_std", "parameter"])
+    out = {}
+    for label, frame in mean.groupby(level=rows if len(rows) > 1 else rows[0]):
+        out[label] = frame.droplevel(rows)
+    return out
+
+
 def as_tuple(label) -> tuple:
     return label if isinstance(label, tuple) else (label,)
 

@@ -5,7 +5,7 @@ SweepDir beside it)::
     <run>/.hydra/overrides.yaml   its command-line overrides
     <run>/.hydra/hydra.yaml       Hydra's own settings (the group choices)
     <run>/checkpoints/best.ckpt   the weights model selection chose; last.ckpt: the newest training state
-    <run>/metrics.json            the record (runs.records), written last
+    <run>/metrics.json            the record (runs.rundir), written last
     <run>/predictions.csv         one row per recording and evaluation; curves.csv: the learning curves
     <run>/figures/                the run's figures (report.run_figures)
     <sweep>/multirun.yaml         Hydra's record of the sweep's command line

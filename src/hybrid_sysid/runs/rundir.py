@@ -1,4 +1,5 @@
-"""A run directory, read and written here alone (its file names: runs/layout.py).
+"""A run directory, read and written here alone (its file names: runs/layout.py), and its self-describing record,
+metrics.json (its fields: docs/design.md, "Run records"), never replaced once completed.
 
 Every command reads a run the same way: its record (``record``), its saved config (``saved_config`` as a config,
 ``saved_values`` as plain data for a report), its group choices and overrides, and the weights it is used with
@@ -21,9 +22,38 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.files import write_atomic, write_json_atomic, write_yaml_atomic
 from hybrid_sysid.runs import layout
-from hybrid_sysid.runs.records import CompletedRecordError, is_completed, run_record
 
 log = logging.getLogger("hybrid_sysid")
+
+
+class CompletedRecordError(RuntimeError):
+    """Writing would replace the record of a completed run."""
+
+
+def run_record(
+    status: str,
+    overrides: list[str],
+    seed: int,
+    steps: int = 0,
+    train_seconds: float = 0.0,
+    results: list[dict] | None = None,
+    error: str | None = None,
+    **extra,
+) -> dict:
+    return {
+        "status": status,
+        "error": error,
+        "overrides": list(overrides),
+        "seed": seed,
+        "steps": steps,
+        "train_seconds": round(train_seconds, 2),
+        "results": results or [],
+        **extra,
+    }
+
+
+def is_completed(record) -> bool:
+    return isinstance(record, dict) and record.get("status") == "completed"
 
 
 class DamagedFile(ConfigError):

@@ -45,14 +45,15 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
     )
 
 
-def build_model(cfg: DictConfig) -> IdentificationModule:
+def build_model(cfg: DictConfig, objective=None) -> IdentificationModule:
     """The network and the objective of the config (their prior of p comes from the car and the mass range:
-    ``${p_prior:...}``, hybrid_sysid.config.resolvers) in an IdentificationModule."""
+    ``${p_prior:...}``, hybrid_sysid.config.resolvers) in an IdentificationModule; ``objective``: one built
+    already from the config."""
     net = build(cfg.model.net, "model.net")
     o = cfg.model.optim
     return IdentificationModule(
         net,
-        build_objective(cfg),
+        build_objective(cfg) if objective is None else objective,
         optimizer=o.name,
         lr=o.lr,
         weight_decay=o.weight_decay,

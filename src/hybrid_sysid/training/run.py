@@ -26,14 +26,14 @@ from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.runs.provenance import provenance_fields
-from hybrid_sysid.runs.records import run_record
 from hybrid_sysid.runs.resume import resume_checkpoint
-from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.rundir import RunDir, run_record
 from hybrid_sysid.training.build import (
     build_baseline,
     build_callbacks,
     build_datamodule,
     build_model,
+    build_objective,
     build_trainer,
     load_network,
     monitor_of,
@@ -155,12 +155,13 @@ def train(
     if done is not None:
         return done
     L.seed_everything(cfg.seed, workers=True)  # 0 included
-    job.loggers = build_loggers(cfg, job.run.path, experiment, run_name, overrides)
-    for logger in job.loggers:
-        logger.log_hyperparams(hyperparameters(cfg))
+    if cfg.get("logger"):  # experiment trackers, as many as the config names
+        job.loggers = build_loggers(cfg, job.run.path, experiment, run_name, overrides)
+        for logger in job.loggers:
+            logger.log_hyperparams(hyperparameters(cfg))
     if cfg.get("baseline") is not None:
         return job.finish(_baseline(cfg))
-    outcome = _fit(job, model if model is not None else build_model(cfg))
+    outcome = _fit(job, model)
     if outcome.rank != 0:
         return {"status": "completed", "rank": outcome.rank}
     if init:
@@ -168,11 +169,13 @@ def train(
     return job.finish(outcome)
 
 
-def _fit(job: Job, model) -> Outcome:
-    """Train the model with the run's Trainer and load its best checkpoint (rank 0 alone, with DDP)."""
+def _fit(job: Job, model=None) -> Outcome:
+    """Train the model (built here from the config when None) with the run's Trainer and load its best checkpoint
+    (rank 0 alone, with DDP). The data, the callbacks and the Trainer come first, the model last."""
     cfg = job.cfg
-    dm = build_datamodule(cfg, model.objective)
-    monitor = monitor_of(cfg, model.objective)
+    objective = build_objective(cfg) if model is None else model.objective
+    dm = build_datamodule(cfg, objective)
+    monitor = monitor_of(cfg, objective)
     ckpt = RunCheckpoint(
         dirpath=job.run.checkpoints,
         filename="best",
@@ -186,6 +189,7 @@ def _fit(job: Job, model) -> Outcome:
     curve_levels = noise_levels(cfg) if curve_std is None else [float(s) for s in curve_std]
     curves = LearningCurves(clock, curve_levels, every_n_steps=cfg.trainer.get("curve_every_n_steps"))
     trainer = build_trainer(cfg, job.run.path, [clock, curves, ckpt, *build_callbacks(cfg, monitor)], job.loggers)
+    model = build_model(cfg, objective) if model is None else model
     dm.setup("fit")
     last = resume_checkpoint(job.run)
     if last is not None:
