@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Re-run every sweep behind docs/results.md (about three hours on two CPU cores; the sweeps the readings rest on
-# first), then regenerate the page.
+# Re-run every sweep behind docs/results/ (about three hours on two CPU cores; the sweeps the readings rest on
+# first), then regenerate the pages.
 # With the sweeps already on disk, only the last command is needed.
 # docs/figures/main_job.png, the README's figure, is not written here: it is figures/robustness.png of a run of the
 # README's first command (hybrid-sysid experiment=robustness), kept with that run's table in docs/results_notes.md
@@ -29,5 +29,5 @@ hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01
 hybrid-sysid experiment=tuned hydra.sweep.dir=$out/tuned   # pip install -e ".[search]"
 hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
   $out/paper $out/transfer $out/field $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
-  $out/tuned exclude='*/search/*' results=docs/results.md notes=docs/results_notes.md reproduction=true \
+  $out/tuned exclude='*/search/*' results=docs/results notes=docs/results_notes.md reproduction=true \
   merge=$out/noise_robust_paper,$out/noise_robust_paper_clean,$out/noise_robust_paper_hybrid

@@ -175,13 +175,17 @@ def notes(tmp_path: Path) -> Path:
     return path
 
 
-def test_every_generated_section_of_the_results_page_names_its_commit_and_command():
-    """docs/results.md as committed: a table whose section does not name the command, or whose runs' commit is
-    not recorded, fails here (regenerate the page: docs/make_results.sh)."""
-    text = (REPO / "docs" / "results.md").read_text(encoding="utf-8")
-    assert generated_sections(text), "docs/results.md has no generated section"
-    missing = sections_without_provenance(text)
-    assert missing == [], "regenerate docs/results.md (docs/make_results.sh):\n" + "\n".join(missing)
+def test_every_generated_section_of_the_results_pages_names_its_commit_and_command():
+    """docs/results/ as committed: a table whose section does not name the command, or whose runs' commit is not
+    recorded, fails here (regenerate the pages: docs/make_results.sh); the index lists every page."""
+    pages = sorted(p for p in (REPO / "docs" / "results").glob("*.md") if p.name != "index.md")
+    index = (REPO / "docs" / "results" / "index.md").read_text(encoding="utf-8")
+    assert pages and all(f"]({p.name})" in index for p in pages)
+    for page in pages:
+        text = page.read_text(encoding="utf-8")
+        assert len(generated_sections(text)) == 1, f"{page.name} holds no or several generated sections"
+        missing = sections_without_provenance(text)
+        assert missing == [], f"regenerate docs/results/ (docs/make_results.sh): {page.name}\n" + "\n".join(missing)
 
 
 def test_a_runs_record_holds_its_checkouts_commit_and_its_cpu(tiny_run):

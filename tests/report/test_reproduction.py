@@ -9,6 +9,7 @@ from omegaconf import OmegaConf
 
 from hybrid_sysid.cli.report import main
 from hybrid_sysid.report.paper import constant_guess, reproduction_markdown, write_reproduction
+from hybrid_sysid.report.provenance import generated_sections
 
 from helpers.evaluation_fakes import known_results, make_run, make_sweep, parse_markdown, plain
 
@@ -155,7 +156,7 @@ def test_cli_results_page_one_section_per_sweep_with_figures(tmp_path, capsys):
     assert not (robust / "summary.csv").exists() and not (paper / "summary.csv").exists()  # no out=
     assert text.index("## experiment=robustness") < text.index("## experiment=paper")
     assert f"results={page}" in text and "hybrid-sysid-report" in text  # the command that regenerates it
-    for name in ("robustness", "paper"):
+    for name in ("robust", "paper_sweep"):
         assert f"](figures/{name}.png)" in text
         assert (page.parent / "figures" / f"{name}.png").read_bytes()[:4] == b"\x89PNG"
     assert "Failed jobs:" in text and "RuntimeError: loss is nan" in text
@@ -187,6 +188,33 @@ def test_cli_results_page_places_the_notes_after_the_header(tmp_path, capsys):
     assert main([str(paper), f"results={page}", f"notes={missing}"]) == 2
     assert f"notes = {missing} is not allowed: a markdown file that exists" in capsys.readouterr().err
     assert not page.exists()  # nothing written
+
+
+def test_cli_results_directory_has_an_index_a_page_per_sweep_and_links_the_notes(tmp_path, capsys):
+    """results=DIR: DIR/index.md lists a page per section, links the hand-written reading instead of copying it,
+    and each page holds its section as the one-page form does, figures beside the pages."""
+    paper = _make(tmp_path / "paper_sweep")
+    robust = make_sweep(tmp_path / "robust", extra=("experiment=robustness",))
+    notes = tmp_path / "docs" / "reading.md"
+    notes.parent.mkdir()
+    notes.write_text("## Reading\n\nHybrid is not more robust here.\n")
+    out = tmp_path / "docs" / "results"
+    assert main([str(robust), str(paper), f"results={out}", f"notes={notes}"]) == 1  # a job failed
+    index = (out / "index.md").read_text()
+    assert capsys.readouterr().out == index
+    assert "](../reading.md)" in index and "Hybrid is not more robust" not in index
+    assert (
+        "- [experiment=robustness](robust.md): " in index
+        and "- [experiment=paper (paper_sweep)](paper_sweep.md)" in index
+    )
+    single = tmp_path / "one" / "results.md"
+    assert main([str(robust), str(paper), f"results={single}"]) == 1
+    one = single.read_text()
+    for name in ("robust", "paper_sweep"):
+        page = (out / f"{name}.md").read_text()
+        [(heading, body)] = generated_sections(page)
+        assert f"## {heading}\n{body}" in one  # the same section as on the one page
+        assert (out / "figures" / f"{name}.png").read_bytes()[:4] == b"\x89PNG" and f"](figures/{name}.png)" in page
 
 
 def test_callback_writes_reproduction_when_asked(tmp_path, capsys):

@@ -1,4 +1,4 @@
-"""docs/results.md can be reproduced: the README's main job, run again here, gives the table the page shows for it.
+"""docs/results/ can be reproduced: the README's main job, run again here, gives the table its page shows for it.
 
 The main job (``hybrid-sysid experiment=robustness``: fast_cnn, three objectives x three seeds, about three minutes
 on two cores) is the smallest sweep on the page that simulates data with the physics, trains the model and scores
@@ -38,7 +38,7 @@ from helpers.app_process import run_app
 pytestmark = pytest.mark.slow
 
 REPO = Path(__file__).resolve().parents[2]
-PAGE = REPO / "docs" / "results.md"
+PAGE = REPO / "docs" / "results" / "robustness.md"
 COMMAND = "hybrid-sysid experiment=robustness"  # the README's first command
 CODE = ("src", "pyproject.toml")  # what makes the numbers; the docs and tests do not
 CELL = re.compile(r"(-?\d+(?:\.\d+)?) ± (\d+(?:\.\d+)?)")
@@ -50,7 +50,7 @@ def page_section(text: str) -> str:
         p = read_provenance(body)
         if p is not None and [c for c, _ in p.commands] == [COMMAND]:
             return body
-    pytest.fail(f"docs/results.md has no section made by `{COMMAND}` alone; regenerate it (docs/make_results.sh)")
+    pytest.fail(f"{PAGE.name} has no section made by `{COMMAND}` alone; regenerate it (docs/make_results.sh)")
 
 
 def same_code(commit: str) -> bool:

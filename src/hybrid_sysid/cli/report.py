@@ -42,11 +42,13 @@ usage: {PROG} PATH... [key=value ...]
   latex=true            also write summary.tex (a booktabs table)
   run_figures=true      also draw each completed run's own figures (figures/ in its directory), which a sweep's
                         jobs do not draw by default
-  reproduction=true     also write reproduction.md: the paper's figures beside ours (with results=: a section
-                        per PATH in the page)
-  results=FILE          write a results page (one section per PATH, figures in FILE's folder/figures/) instead
-                        of the summary files, which are still written when out= is given
-  notes=MD              with results=: a hand-written markdown file placed after the page's header
+  reproduction=true     also write reproduction.md: the paper's figures beside ours (with results=: in each
+                        section of the results)
+  results=DIR           write results pages instead of the summary files (which out= still writes): DIR/index.md
+                        and a page per PATH, DIR/<section>.md, figures in DIR/figures/; results=FILE.md writes
+                        one page holding every section
+  notes=MD              with results=: the hand-written reading, linked from the index (on one page: placed
+                        after its header)
   merge=DIR,DIR,...     with results=: one more section whose table merges these sweeps ("All rows"), after the
                         section of the first DIR; repeatable. Every section names, under its heading, the command
                         that re-creates its sweeps, the commit and the CPU of their runs
@@ -57,7 +59,7 @@ argument, a path without runs, or compare= naming a key that is not swept.
 examples:
   {PROG} outputs/multirun/2026-01-01_12-00-00
   {PROG} outputs/multirun/a outputs/multirun/b split=val compare=objective latex=true out=report
-  {PROG} outputs/multirun/tuned exclude='*/search/*' results=docs/results.md reproduction=true
+  {PROG} outputs/multirun/tuned exclude='*/search/*' results=docs/results reproduction=true
 """
 KEYS = {
     "split": Key("choice", "test", SPLITS),
@@ -90,7 +92,7 @@ def parse_args(argv) -> Namespace:
             "PATH", missing=True, allowed=f"at least one run or sweep directory: {PROG} PATH... (see --help)"
         )
     if args.merge and args.results is None:
-        raise UsageError("merge", allowed="with results=FILE (it adds a section to a results page)")
+        raise UsageError("merge", allowed="with results=DIR (it adds a section to the results)")
     return args
 
 
@@ -155,8 +157,9 @@ def main(argv=None) -> int:
             )
             print(text, end="")
             bad = max(bad, n_bad)
+            folder = args.results.parent if args.results.suffix == ".md" else args.results
             print(
-                f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and {args.results.parent / 'figures'}/",
+                f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and {folder / 'figures'}/",
                 file=sys.stderr,
             )
         if args.run_figures:
