@@ -204,7 +204,7 @@ def test_cli_results_directory_has_an_index_a_page_per_sweep_and_links_the_notes
     assert capsys.readouterr().out == index
     assert "](../reading.md)" in index and "Hybrid is not more robust" not in index
     assert (
-        "- [experiment=robustness](robust.md): " in index
+        "- [experiment=robustness (robust)](robust.md): " in index
         and "- [experiment=paper (paper_sweep)](paper_sweep.md)" in index
     )
     single = tmp_path / "one" / "results.md"
