@@ -1,11 +1,12 @@
-"""hybrid-sysid: labelled vs physics-informed (hybrid) objectives for parameter identification.
+"""hybrid-sysid: labelled and physics-informed (hybrid) objectives for identifying a quarter car's seat parameters.
 
-Layers, each importing only those before it: ``physics`` (plain numpy), ``data`` (cached datasets, the split by
-road, the LightningDataModule), ``model`` (CNNs, objectives, LightningModule, metrics) and ``baselines`` (least
-squares without a network), training (``config``, ``train``, ``records``), ``report`` (summaries, tables,
-figures, the ``hybrid-sysid-report`` command), ``app`` (the Hydra app behind ``hybrid-sysid``); beside the last
-two, ``estimator`` (a trained run as a tool: ``load_estimator``) and ``predict`` (the ``hybrid-sysid-predict``
-command). ``files`` holds the atomic writer any layer may use. docs/design.md describes each.
+The folders are the layers, each importing only those below it (tests/test_layers.py): ``core`` (errors, value
+checks, allowed values, atomic files, stop requests), ``physics`` (plain numpy), ``data`` (dataset spec, cache,
+windows, the data module), ``model`` and ``baselines`` (networks, objectives and least squares, behind the
+protocols of model/base.py), ``config`` (schema, allowed classes, checks), ``runs`` (run and sweep directories),
+``training`` (build, fit, score, trackers), ``report`` (tables and figures from files), ``experiments`` and
+``inference`` (chained jobs; a trained run as an estimator, ``load_estimator``), ``cli`` (the commands).
+docs/design.md maps each folder.
 """
 
 __version__ = "0.2.0"

@@ -1,2 +1,3 @@
-"""The bottom layer, plain Python that every other layer may use: atomic file writers (files), the one-line value
-checks (checks) and every list of allowed values (options)."""
+"""The bottom layer, plain Python that every other layer may use: the one error a bad value raises and the value
+checks (checks), every list of allowed values (options), atomic file writers (files), the stop a signal requests
+(stop) and the pip command of an optional extra (install)."""

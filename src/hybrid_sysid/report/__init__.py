@@ -1,3 +1,3 @@
-"""Reporting, built from run directories on disk alone: collect (find and read runs), tables (the comparison table
-and its marks), summary (a sweep's summary files), figures, the paper's reported figures beside ours, results
-pages, and the ``hybrid-sysid-report`` command."""
+"""Reporting, built from run directories on disk alone: collect (find and read runs), tables, stats, markdown and
+latex (the comparison table, its marks and its two forms), summary (a sweep's summary files), figures, the
+paper's reported figures beside ours, results pages, and what an experiment adds to its table (extras)."""
