@@ -114,9 +114,9 @@ def run_job(
 
 
 def draws_figures(setting, multirun: bool) -> bool:
-    """run_figures: true or false as given; auto: a single run draws its figures, a sweep's job does not (about
-    2 s of CPU a job for figures few open; the sweep draws its own, and hybrid-sysid-report run_figures=true
-    draws the runs' later)."""
+    """run_figures: true or false as given; auto: a single run draws its figures, a sweep's job does not (seconds
+    of CPU a job for figures few open: benchmarks/README.md; the sweep draws its own, and hybrid-sysid-report
+    run_figures=true draws the runs' later)."""
     return setting if isinstance(setting, bool) else not multirun
 
 

@@ -31,7 +31,7 @@ from hybrid_sysid.cli.progress import count_done, job_line, start_line, sweep_jo
 from hybrid_sysid.runs.layout import PROGRESS
 
 log = logging.getLogger("hybrid_sysid")
-# what the sweep's end needs (scipy.stats, matplotlib, pandas: about 2 s of imports). The parent loads them in a
+# what the sweep's end needs (scipy.stats, matplotlib, pandas: seconds of imports). The parent loads them in a
 # thread while the jobs run, after its launcher is under way, so the end does not wait for them. A sweep that ends
 # first cancels the load and imports them itself.
 REPORT_MODULES = (

@@ -67,8 +67,8 @@ def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: boo
 
 
 def freeze_imports() -> None:
-    """torch, Lightning and their imports leave ~500,000 long-lived objects that every full garbage collection
-    walks again: during a job, and when a sweep's worker process ends, which held the sweep's exit back by ~1.5 s
+    """torch, Lightning and their imports leave hundreds of thousands of long-lived objects that every full garbage
+    collection walks again: during a job, and when a sweep's worker process ends, which held the sweep's exit back
     (benchmarks/README.md). Collected once and frozen (``gc.freeze``), they are skipped from then on; what the
     job allocates afterwards is collected as usual, and the collection first frees whatever an earlier job in
     the same worker left, so nothing of it is kept."""

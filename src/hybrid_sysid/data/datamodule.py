@@ -182,8 +182,8 @@ class QuarterCarDataModule(L.LightningDataModule):
     ) -> DataLoader:
         full = self.eval_batch(split, noise_std, limit, windows)
         n = len(full["index"])
-        # 256 windows a batch by default: a fast_cnn forward takes ~20% less per window than at 1000 (its
-        # activations stay in the cache), and every network here treats windows one by one: the same numbers
+        # 256 windows a batch by default: a fast_cnn forward takes less per window than at 1000 (its activations
+        # stay in the cache: benchmarks/README.md), and every network here treats windows one by one: the same numbers
         size = self.eval_batch_size
         chunks = [{k: v[i : i + size] for k, v in full.items()} for i in range(0, n, size)]
         return DataLoader(chunks, batch_size=None)
@@ -202,8 +202,8 @@ class QuarterCarDataModule(L.LightningDataModule):
             self.train_windows.resume_at(state_dict["train_batches"])
 
     def transfer_batch_to_device(self, batch, device, dataloader_idx):
-        # batches are built on the CPU, and Lightning's default walks every batch to move it nowhere: ~0.1 ms
-        # a step (benchmarks/README.md, "Training throughput")
+        # batches are built on the CPU, and Lightning's default walks every batch to move it nowhere: time in every
+        # step (benchmarks/README.md, "Training throughput")
         if device.type == "cpu":
             return batch
         return super().transfer_batch_to_device(batch, device, dataloader_idx)

@@ -27,7 +27,7 @@ def gather(windows: np.ndarray, rows: np.ndarray, starts: np.ndarray) -> torch.T
     """windows[rows[i], starts[i]] for every i: arr[rows[i], starts[i]:starts[i] + window], one contiguous copy.
 
     Indexing the window view copies whole rows; torch's advanced indexing with a (batch, window) column index
-    takes over 10x as long (benchmarks/README.md, "Data pipeline").
+    takes many times as long (benchmarks/README.md, "Data pipeline").
     """
     return torch.from_numpy(windows[rows, starts])
 
@@ -110,7 +110,7 @@ class WindowCutter:
         self.fir = None
         if fir is not None:
             fir = np.asarray(fir, dtype=np.float64)
-            # by FFT, about 10x faster than torch's conv1d with 151 taps; a transform as long as the window
+            # by FFT, far faster than torch's conv1d with 151 taps; a transform as long as the window
             # suffices, since the circular wrap-around only reaches the taps - 1 edge samples 'valid' drops
             self.nfft = 1 << int(np.ceil(np.log2(window)))
             self.fir = torch.fft.rfft(torch.from_numpy(fir.astype(np.float32)), self.nfft)

@@ -52,9 +52,9 @@ class IdentificationModule(L.LightningModule):
             raise FloatingPointError(
                 f"training loss is {loss.item()} at step {self.global_step}; lower model.optim.lr or check the data"
             )
-        # a self.log call costs about 1.8 ms (benchmarks/README.md, training throughput), near a tenth of a
-        # fast_cnn step: the progress bar's loss follows Lightning's own default logging interval instead
-        # (on the steps where the Trainer's log_every_n_steps = LOG_EVERY passes it on to the loggers)
+        # a self.log call costs a sizeable share of a fast_cnn step (benchmarks/README.md, "Training throughput"):
+        # the progress bar's loss follows Lightning's own default logging interval instead (on the steps where the
+        # Trainer's log_every_n_steps = LOG_EVERY passes it on to the loggers)
         if (self.global_step + 1) % LOG_EVERY == 0:
             self.log("train/loss", loss.detach(), prog_bar=True, batch_size=len(batch["signals"]))
         return loss

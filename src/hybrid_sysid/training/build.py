@@ -104,7 +104,7 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
     if kwargs["deterministic"]:
         # deterministic mode also fills every new tensor with NaN, against ops that read memory they did not
         # write; none of a run's does (tests/model/test_deterministic_fill.py: the same weights either way), and
-        # the fill costs about 5% of a fast_cnn step (benchmarks/README.md, the main job)
+        # the fill costs a share of every step (benchmarks/README.md, "The main job")
         torch.utils.deterministic.fill_uninitialized_memory = False
     return trainer
 
