@@ -27,11 +27,12 @@ from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import Config, validate
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
+from hybrid_sysid.core.options import EVAL_OVERRIDABLE
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
 # keys an evaluation may change; anything else the run trained with stays
-OVERRIDABLE = ("data", "car", "road", "noise", "evaluation", "paths")
+OVERRIDABLE = EVAL_OVERRIDABLE
 LAUNCHER_KEYS = ("trainer.threads", "trainer.progress_bar")  # what a launcher group sets for its workers
 
 

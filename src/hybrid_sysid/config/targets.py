@@ -18,6 +18,7 @@ import inspect
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.core.checks import ConfigError, bad
+from hybrid_sysid.core.options import CALLBACKS, LOGGERS
 from hybrid_sysid.model.base import Baseline, Network, Objective, lacks
 
 # config key -> (the package whose classes it may name, what such a class must provide)
@@ -26,12 +27,10 @@ OWN = {
     "objective": ("hybrid_sysid.model", Objective),
     "baseline": ("hybrid_sysid.baselines", Baseline),
 }
-_LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
-_CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")
 # config key -> {the _target_ of a library's class a config may give: (module, class name)}
 LIBRARY: dict[str, dict[str, tuple[str, str]]] = {
-    "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in _LOGGERS},
-    "callbacks": {f"lightning.pytorch.callbacks.{n}": ("lightning.pytorch.callbacks", n) for n in _CALLBACKS},
+    "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in LOGGERS},
+    "callbacks": {f"lightning.pytorch.callbacks.{n}": ("lightning.pytorch.callbacks", n) for n in CALLBACKS},
 }
 FAMILIES = ("logger", "callbacks")  # a mapping of names, each to a _target_: logger.<name>, callbacks.<name>
 

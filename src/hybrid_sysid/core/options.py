@@ -7,8 +7,12 @@ ROAD_CLASSES = "ABCDE"
 MEASUREMENTS = ("paper", "consistent", "continuous")
 STEPPED = ("paper", "consistent")  # the measurements recorded from the eq.-11 step (continuous: exact samples)
 DEFAULT_MEASUREMENT = "consistent"
-# hybrid_sysid.data.windows.WindowCutter: how a window's sensor noise is re-integrated (docs/noise.md)
+# hybrid_sysid.data.windows.WindowCutter: how a window's sensor noise is re-integrated (docs/noise.md), and the rules
+# that integrate a recording's samples (symplectic Euler for the stepped measurements, the trapezoid for continuous)
 INTEGRATIONS = ("t0", "window")
+INTEGRATION_RULES = ("symplectic", "trapezoid")
+# hybrid_sysid.data.splits: the splits of a dataset, by road
+SPLITS = ("train", "val", "test")
 # hybrid_sysid.model.objectives.HybridObjective: the residual's weighting, and what it fits the prediction to (the
 # residual itself, or the per-window least-squares fit of its regressors, plain or whitened by their correlation)
 WEIGHTINGS = ("none", "eiv")
@@ -28,6 +32,13 @@ PROFILERS = ("simple", "advanced")
 SPANS = ("window", "series")
 FILTERS = ("none", "bandpass")
 UNKNOWNS = ("p", "m3")
+# the Lightning classes a config may name by _target_ (hybrid_sysid.config.targets): loggers and callbacks
+LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
+CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")
+# hybrid-sysid-eval: the config sections an evaluation may change (the network and its training are the run's)
+EVAL_OVERRIDABLE = ("data", "car", "road", "noise", "evaluation", "paths")
+# hybrid-sysid-report metric=: what a table's cells show, and its words
+METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
 # what one job of hybrid-sysid does (hybrid_sysid.cli.train): one run, a transfer chain, a tuned comparison
 TASKS = ("train", "transfer", "tuned")
 DIRECTIONS = ("minimize", "maximize")  # a search's direction (hybrid_sysid.experiments.search)

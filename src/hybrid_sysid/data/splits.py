@@ -8,9 +8,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from hybrid_sysid.core.checks import bad, check_number
+from hybrid_sysid.core.options import SPLITS
 
 # the order is part of the seeds: a split's index seeds its evaluation windows and noise
-SPLITS = ("train", "val", "test")
 
 
 @dataclass(frozen=True)

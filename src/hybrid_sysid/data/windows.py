@@ -12,7 +12,8 @@ import numpy as np
 import torch
 from torch.utils.data import IterableDataset
 
-from hybrid_sysid.core.checks import bad
+from hybrid_sysid.core.checks import check_choice
+from hybrid_sysid.core.options import INTEGRATION_RULES
 from hybrid_sysid.data.dataset import SimulatedDataset
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import fir_valid
@@ -66,7 +67,7 @@ def start_state(starts: np.ndarray, dt: float, normals: np.ndarray, rule: str = 
         cov = np.where(after, 2 * dt**3 * ((2 * s - 1) / 8 + s * (s - 1) / 2), 0.0)
         var_x = np.where(after, 2 * dt**4 * ((2 * s - 1) ** 2 / 16 + (s - 1) * s * (2 * s - 1) / 6), 0.0)
     else:
-        bad("rule", rule, "one of symplectic, trapezoid")
+        check_choice("rule", rule, INTEGRATION_RULES)
     a = np.sqrt(var_v)
     b = np.divide(cov, a, out=np.zeros_like(a), where=a > 0)
     c = np.sqrt(np.maximum(var_x - b * b, 0.0))

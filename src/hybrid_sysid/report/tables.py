@@ -22,11 +22,11 @@ import numpy as np
 import pandas as pd
 
 from hybrid_sysid.core.checks import bad
+from hybrid_sysid.core.options import METRICS
 from hybrid_sysid.report.collect import natural_key, row_keys
 from hybrid_sysid.report.extras import extras_of
 from hybrid_sysid.report.stats import ALPHA, CONFIDENCE, K_LEVEL, NO_KEYS, paired_p, t_interval
 
-METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
 BEST, WORSE, WITHIN, UNKNOWN = "best", "worse", "within", "unknown"
 DAGGER = "†"
 MIN_SEEDS = 3  # rows with fewer completed seeds get a warning under the table
