@@ -1,5 +1,5 @@
-"""Seat and body acceleration RMS per road class on data=default's settings, for both amplitude forms, and the
-signal-to-noise ratio that sensor noise of a given std leaves (docs/noise.md quotes this script's output).
+"""Seat and body acceleration RMS per road class on data=default's settings (amplitudes by the paper's eq. 3), and
+the signal-to-noise ratio that sensor noise of a given std leaves (docs/noise.md quotes this script's output).
 
     python benchmarks/signal_levels.py [--roads 20] [--noise 0.01]
 
@@ -22,15 +22,14 @@ def main():
     dt, n_steps, speed = 0.005, 1200, 15.0
     rng = np.random.default_rng(0)
     print(f"{args.roads} roads per class, data=default settings; noise std {args.noise} m/s^2")
-    print("| amplitude | class | seat RMS [m/s^2] | body RMS [m/s^2] | seat RMS / noise std |")
-    print("| --- | --- | ---: | ---: | ---: |")
-    for amplitude in ("paper", "iso"):
-        for cls in "ABCDE":
-            road = road_profiles([cls] * args.roads, n_steps, dt, speed, 300, amplitude, rng)
-            masses = rng.integers(50, 201, size=args.roads).astype(float)
-            seat, body = simulate(road, masses, dt, measurement="consistent")
-            s, b = np.sqrt(np.mean(seat**2)), np.sqrt(np.mean(body**2))
-            print(f"| {amplitude} | {cls} | {s:.3g} | {b:.3g} | {s / args.noise:.3g} |")
+    print("| class | seat RMS [m/s^2] | body RMS [m/s^2] | seat RMS / noise std |")
+    print("| --- | ---: | ---: | ---: |")
+    for cls in "ABCDE":
+        road = road_profiles([cls] * args.roads, n_steps, dt, speed, 300, rng)
+        masses = rng.integers(50, 201, size=args.roads).astype(float)
+        seat, body = simulate(road, masses, dt, measurement="consistent")
+        s, b = np.sqrt(np.mean(seat**2)), np.sqrt(np.mean(body**2))
+        print(f"| {cls} | {s:.3g} | {b:.3g} | {s / args.noise:.3g} |")
 
 
 if __name__ == "__main__":

@@ -123,6 +123,19 @@ def test_evaluating_a_run_on_its_own_config_reproduces_its_metrics(source, tmp_p
     assert (tmp_path / "eval" / "metrics.json").stat().st_mtime_ns == stamp
 
 
+def test_a_run_saved_by_another_version_is_one_line_naming_it(source, tmp_path):
+    """A saved config holding a key this version lacks (data.amplitude, removed in 0.2) cannot be evaluated as if
+    it were this version's: one ConfigError naming the run and the key, before any work."""
+    from hybrid_sysid.cli.evaluate import evaluation_config
+
+    _, _, run_dir = source
+    saved = OmegaConf.load(run_dir / ".hydra" / "config.yaml")
+    saved.data.amplitude = "paper"
+    save_config(saved, tmp_path)
+    with pytest.raises(ConfigError, match=r"^run = .* not allowed: .*data\.amplitude.*another version"):
+        evaluation_config(tmp_path, saved, [])
+
+
 def test_evaluation_on_another_car_changes_the_labels_not_the_network(source, tmp_path):
     cfg, record, run_dir = source
     other = OmegaConf.merge(cfg, {"car": {"c3": 615.0 * 1.12}})

@@ -11,6 +11,7 @@ import pytest
 from omegaconf import OmegaConf
 from scipy.optimize import curve_fit
 
+from hybrid_sysid.config import ConfigError
 from hybrid_sysid.inference.estimator import resample_to
 from hybrid_sysid.inference.inputs import InputError
 from hybrid_sysid.model.metrics import relative_deviation
@@ -181,6 +182,8 @@ def test_last_checkpoint_when_asked_or_when_best_is_missing(tiny_run, tmp_path):
     fallback, last = load_estimator(tmp_path), load_estimator(tiny_run, checkpoint="last")
     for a, b in zip(fallback.net.state_dict().values(), last.net.state_dict().values()):
         assert (a == b).all()
+    with pytest.raises(ConfigError, match=r"^checkpoint = 'latest' is not allowed: best or last"):
+        load_estimator(tiny_run, checkpoint="latest")
 
 
 @started_early

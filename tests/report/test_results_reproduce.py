@@ -12,7 +12,7 @@ Which rule applies depends on what the page says about its runs:
 - To the digit (every cell's text, bold and † marks included) when the page's runs ran on this machine's kind of
   CPU (the model name the records hold) and from the code here: one commit, not dirty, and ``git diff`` finds no
   change under src/ or in pyproject.toml between that commit and the working tree. One kind of processor, one
-  thread count (the preset pins it) and one code give the same numbers (docs/reliability.md, "Reproducibility").
+  thread count (the preset pins it) and one code give the same numbers (docs/reliability/reproducibility.md).
 - Within the seed spread otherwise: for every cell, with m the mean and s the sample standard deviation over the
   seeds, |m_ours - m_page| <= s_ours + s_page. This is the page's own rule for two rows that do not differ beyond
   the seed spread (its † marks), and what the page promises for another kind of processor: its kernels round

@@ -85,10 +85,13 @@ def test_resume_accepts_the_same_config_from_anywhere(tmp_path, make_cfg):
     run = saved_run(tmp_path, make_cfg, *TINY)
     moved = tmp_path / "moved"
     run.rename(moved)
-    # where the run and the cache lie and the progress bar cannot change the numbers
+    # where the run and the cache lie, the progress bar and the profiler cannot change the numbers
     check_resume(
         RunDir(moved), make_cfg(*TINY, f"resume={moved}", "data.cache_dir=elsewhere", "trainer.progress_bar=true")
     )
+    check_resume(RunDir(moved), make_cfg(*TINY, "trainer.profiler=simple", "paths.root=elsewhere"))
+    with pytest.raises(ConfigError, match="trainer.max_steps"):  # a key beside them still may not change
+        check_resume(RunDir(moved), make_cfg(*TINY, "trainer.profiler=simple", "trainer.max_steps=7"))
 
 
 def test_resume_accepts_other_curve_levels_and_a_config_saved_before_them(tmp_path, make_cfg):
@@ -221,6 +224,10 @@ def test_checkpoints_name_their_files_relative_to_the_run(finished, tmp_path):
     moved.load_state_dict(state)
     assert moved.best_model_score == state["best_model_score"]  # Lightning drops it when the directory changed
     assert moved.best_model_path == str(tmp_path / "elsewhere" / "best.ckpt")
+    # a state naming its files by absolute path (versions before 0.2) would take a file outside the run: refused
+    absolute = dict(state, best_model_path=str(run / "checkpoints" / "best.ckpt"))
+    with pytest.raises(ConfigError, match=r"^resume = .* is not allowed: a run whose checkpoints name their files"):
+        moved.load_state_dict(absolute)
 
 
 def test_the_record_holds_the_thread_count(finished):

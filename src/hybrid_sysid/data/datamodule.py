@@ -71,7 +71,8 @@ class QuarterCarDataModule(L.LightningDataModule):
 
     def _get_dataset(self) -> SimulatedDataset:
         # simulating runs numba's parallel kernel, whose OpenMP runtime torch shares: it leaves torch at numba's
-        # thread count (all cores). Put back the run's own, which its numbers depend on (docs/reliability.md)
+        # thread count (all cores). Put back the run's own, which its numbers depend on
+        # (docs/reliability/reproducibility.md)
         threads = torch.get_num_threads()
         try:
             return get_dataset(self.spec, self.cache_dir)

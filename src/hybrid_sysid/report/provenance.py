@@ -5,7 +5,8 @@ The command is Hydra's record of the command line: a sweep directory's multirun.
 (``hydra.overrides.task``, and ``hydra.overrides.hydra`` but where the runs were written, which changes no
 number); a single run's are its record's ``overrides``. The commit (``git_commit``, ``git_dirty``) and the
 processor's model name (``cpu``) are fields of each run's record (training/run.py writes them). The numbers of one
-command differ in their last digits between kinds of processor (docs/reliability.md), so the page names the kind.
+command differ in their last digits between kinds of processor (docs/reliability/reproducibility.md), so the page
+names the kind.
 
 The block is three list items, one per fact; a value that differs between the runs of a table is listed with the
 number of runs that have it::

@@ -31,7 +31,7 @@ def windows_note(df: pd.DataFrame, table: pd.DataFrame, split: str) -> str:
 
 def threads_warning(df: pd.DataFrame) -> str:
     """A warning when the completed runs used different torch thread counts (their numbers then differ beyond
-    rounding: docs/reliability.md), else an empty string."""
+    rounding: docs/reliability/reproducibility.md), else an empty string."""
     done = df[df.status == "completed"].drop_duplicates("run")
     counts = sorted(int(n) for n in done["threads"].dropna().unique()) if "threads" in done else []
     if len(counts) < 2:

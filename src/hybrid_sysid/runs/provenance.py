@@ -1,6 +1,6 @@
 """What made a run's numbers, read once per process: the code's git checkout and the processor. A run's record
 holds both side by side (``git_commit``, ``git_dirty``, ``cpu``); the last digits of a run's numbers depend on the
-kind of CPU (docs/reliability.md)."""
+kind of CPU (docs/reliability/reproducibility.md)."""
 
 from __future__ import annotations
 

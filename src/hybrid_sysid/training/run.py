@@ -106,7 +106,7 @@ class Job:
         predictions.csv, curves.csv and the record, close the trackers, print the table. Returns the record."""
         stop.check()  # a safe point: a termination signal swallowed during the work ends the run here
         cfg = self.cfg
-        threads = torch.get_num_threads()  # recorded: the numbers depend on it (docs/reliability.md)
+        threads = torch.get_num_threads()  # recorded: the numbers depend on it (docs/reliability/reproducibility.md)
         ks = [int(k) for k in cfg.evaluation.windows]
         results, predictions = score(outcome.model, outcome.dm, noise_levels(cfg), ks)
         self.run.write_tables(predictions, pd.DataFrame(outcome.curves, columns=CURVE_COLUMNS))
