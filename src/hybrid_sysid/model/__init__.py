@@ -7,6 +7,7 @@ from hybrid_sysid.model.base import Baseline, Network, Objective, SplitPredictor
 _LAZY = {
     "FastCNN": "networks",
     "PaperCNN": "networks",
+    "AnchoredCNN": "anchored",
     "LabelledObjective": "objectives",
     "HybridObjective": "objectives",
     "CombinedObjective": "objectives",

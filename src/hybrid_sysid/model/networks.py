@@ -143,10 +143,17 @@ class FastCNN(nn.Module):
         log_lo, log_span = self.log_lo.double().cpu().numpy(), self.log_span.double().cpu().numpy()
         return np.exp(log_lo), np.exp(log_lo + log_span)
 
-    def forward(self, signals: torch.Tensor) -> torch.Tensor:
+    def embed(self, signals: torch.Tensor) -> torch.Tensor:
+        """(B, channels): the pooled features the head reads."""
         # per-window scale from the body channel; the floor only guards an all-zero (parked) window
         rms = signals[:, 1:2].pow(2).mean(dim=-1, keepdim=True).sqrt().clamp_min(1e-8)
         x = signals / rms
         x = torch.cat([x, x[:, :1] - x[:, 1:2]], dim=1)
-        h = self.features(x).mean(dim=-1)
-        return torch.exp(self.log_lo + self.log_span * torch.sigmoid(self.head(h)))
+        return self.features(x).mean(dim=-1)
+
+    def bounded(self, logits: torch.Tensor) -> torch.Tensor:
+        """p in the head's range from unbounded logits (B, 2): log p = log_lo + log_span sigmoid(logits)."""
+        return torch.exp(self.log_lo + self.log_span * torch.sigmoid(logits))
+
+    def forward(self, signals: torch.Tensor) -> torch.Tensor:
+        return self.bounded(self.head(self.embed(signals)))
