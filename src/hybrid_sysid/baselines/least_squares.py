@@ -17,8 +17,9 @@ import time
 
 import numpy as np
 
+from hybrid_sysid.baselines.fixes import fit_fixed
 from hybrid_sysid.core.checks import bad, check_choice
-from hybrid_sysid.core.options import FILTERS, SPANS, UNKNOWNS
+from hybrid_sysid.core.options import FILTERS, FIXES, SPANS, UNKNOWNS
 from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
@@ -90,6 +91,8 @@ class LeastSquaresFit:
         integrated noise (docs/baselines.md: how they were chosen).
     unknown "p": both p1 and p2 fitted; "m3": C3 and K3 known (``c3``, ``k3``, the car's), only m3 fitted,
         so p = (C3, K3) / m3 is one parameter (the paper's own premise).
+    fix: the classical fix of a recording fault (baselines.fixes: "gain", "skew", "hardening"), one more
+        parameter fitted with p; per band-passed window, both p unknown. ``skew_max``: the offsets "skew" tries.
     """
 
     fit_seconds = 0.0  # wall time spent in predict_split: a baseline's only work (each instance its own)
@@ -105,10 +108,15 @@ class LeastSquaresFit:
         unknown: str = "p",
         c3: float | None = None,
         k3: float | None = None,
+        fix: str = "none",
+        skew_max: float = 0.02,
     ):
         check_choice("span", span, SPANS)
         check_choice("filter", filter, FILTERS)
         check_choice("unknown", unknown, UNKNOWNS)
+        check_choice("fix", fix, FIXES)
+        if fix != "none" and (span, filter, unknown) != ("window", "bandpass", "p"):
+            bad("fix", fix, "none unless span = window, filter = bandpass and unknown = p (a fix is per window)")
         for key, value in (("c3", c3), ("k3", k3)) if unknown == "m3" else ():
             if not (isinstance(value, (int, float)) and np.isfinite(value) and value > 0):
                 bad(key, value, f"must be finite and > 0 with unknown = m3 (the car's constant, ${{car.{key}}})")
@@ -117,6 +125,7 @@ class LeastSquaresFit:
         self.span, self.filter = span, filter
         self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt) if filter == "bandpass" else None
+        self.fix, self.skew_max = fix, float(skew_max)
         self.fit_seconds = 0.0  # wall time spent in predict_split: a baseline's only work
 
     def check_lengths(self, window: int, n_steps: int) -> None:
@@ -138,8 +147,15 @@ class LeastSquaresFit:
             rows = [seat[None], rel_vel[None], rel_disp[None]]
         else:
             starts = window_starts(len(seat), window, windows)
-            rows = [np.stack([x[s : s + window] for s in starts]) for x in (seat, rel_vel, rel_disp)]
+            body = np.asarray(body, dtype=np.float64)
+            rows = [np.stack([x[s : s + window] for s in starts]) for x in (seat, rel_vel, rel_disp, body)]
+            if self.fix != "none":
+                return self._fixed(*rows, dt, measurement)
+            rows = rows[:3]
         return fit_p(*rows, self.fir, self.car)
+
+    def _fixed(self, seat, rel_vel, rel_disp, body, dt, measurement) -> np.ndarray:
+        return fit_fixed(self.fix, seat, body, rel_vel, rel_disp, dt, measurement, self.fir, self.skew_max)
 
     def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1):
         """Estimates and truth, float64 (n, 2), one row per recording (model.base.SplitPredictor)."""
@@ -155,8 +171,13 @@ class LeastSquaresFit:
 
     def _windows(self, dm, split, noise_std, limit, windows):
         batch = dm.eval_batch(split, noise_std, limit, windows=windows)
-        seat = batch["signals"][:, 0].numpy()
-        p = fit_p(seat, batch["rel_vel"].numpy(), batch["rel_disp"].numpy(), self.fir, self.car)
+        seat, body = (batch["signals"][:, i].numpy().astype(np.float64) for i in (0, 1))
+        regressors = batch["rel_vel"].numpy(), batch["rel_disp"].numpy()
+        if self.fix != "none":
+            spec = dm.dataset.spec
+            p = self._fixed(seat, *regressors, body, spec.dt, spec.measurement)
+        else:
+            p = fit_p(seat, *regressors, self.fir, self.car)
         # the batch holds each recording's K windows in a row (data module); mean over them as for a network
         pred = p.reshape(-1, windows, 2).mean(axis=1)
         true = batch["params"].numpy().astype(np.float64).reshape(-1, windows, 2)[:, 0]

@@ -32,6 +32,7 @@ PROFILERS = ("simple", "advanced")
 SPANS = ("window", "series")
 FILTERS = ("none", "bandpass")
 UNKNOWNS = ("p", "m3")
+FIXES = ("none", "gain", "skew", "hardening")  # the classical fix of a recording fault (baselines.fixes)
 # the Lightning classes a config may name by _target_ (hybrid_sysid.config.targets): loggers and callbacks
 LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
 CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")
