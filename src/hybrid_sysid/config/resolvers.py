@@ -1,5 +1,5 @@
 """The config's resolvers and its registration with Hydra: ``${p_prior:...}`` derives the prior of p from the
-car and the data, ``${first_set:...}`` picks the run directory."""
+car and the data, ``${first_set:...}`` picks the run directory, ``${fault_fix:}`` the least-squares fix of a fault."""
 
 from __future__ import annotations
 
@@ -27,6 +27,18 @@ def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
     return [float(v) for v in pairs[which]]
 
 
+def fault_fix(*, _root_: DictConfig) -> str:
+    """``${fault_fix:}`` in conf/estimator/ls_fix.yaml: the classical fix (baselines.fixes) of the fault the config
+    simulates. A low-pass that differs between the sensors is, in the seat band, close to a delay, so it gets the
+    skew fix. With several faults on, the first of hardening, skew and gain; with none, "none" (the plain fit)."""
+    sensor = _root_.get("sensor") or {}
+    if float((_root_.get("car") or {}).get("seat_hardening", 0.0) or 0.0) > 0:
+        return "hardening"
+    if float(sensor.get("skew_max", 0.0) or 0.0) > 0 or sensor.get("lowpass_hz") or sensor.get("lowpass_range_hz"):
+        return "skew"
+    return "gain" if float(sensor.get("gain_spread", 0.0) or 0.0) > 0 else "none"
+
+
 def register() -> None:
     """The schema for Hydra and two resolvers: ``p_prior`` (above), and ``first_set`` for the run directory
     (hydra.run.dir is ``resume`` when given, else a new time-stamped directory)."""
@@ -34,3 +46,4 @@ def register() -> None:
     ConfigStore.instance().store(name="eval_schema", node=EvalConfig)
     OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
     OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)
+    OmegaConf.register_new_resolver("fault_fix", fault_fix, replace=True)

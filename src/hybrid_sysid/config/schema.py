@@ -112,6 +112,7 @@ class TransferConfig:
     # label-free objective presets (conf/objective), one adapted row each; [] for none
     adapt_objectives: List[str] = field(default_factory=lambda: ["hybrid"])
     scratch_objective: str = "hybrid"  # the label-free objective preset of the from-scratch row
+    anchored_objectives: List[str] = field(default_factory=list)  # label-free presets: model=anchored from scratch
     baseline: Optional[str] = None  # a baseline preset (conf/baseline, e.g. ls_bandpass) for a row without network
     scenarios: Dict[str, Any] = field(default_factory=dict)  # name -> {car: a car preset, data: {key: value}}
 

@@ -12,6 +12,8 @@ One job per seed (the sweep runs them side by side) trains, in order, in its own
   (``init_from``; model selection by the label-free val/loss);
   ``<scenario>/scratch[_<objective>]``: the label-free ``transfer.scratch_objective`` from random weights on the
   target;
+  ``<scenario>/anchored_<objective>``: for each label-free objective of ``transfer.anchored_objectives``,
+  model=anchored trained with it from scratch on the target (docs/design.md, "The anchored estimator");
   ``<scenario>/oracle``: the labelled objective with the target's labels;
   ``<scenario>/baseline_<name>``: when ``transfer.baseline`` names a baseline preset (conf/baseline), that
   baseline on the target, without a network (an ordinary ``baseline=`` run).
@@ -53,6 +55,10 @@ def adapted_row(objective: str) -> str:
 
 def scratch_row(objective: str) -> str:
     return f"3 {objective} from scratch"
+
+
+def anchored_row(objective: str) -> str:
+    return f"3 {objective} from scratch, anchored"
 
 
 def baseline_row(name: str) -> str:
@@ -128,7 +134,8 @@ def _label_free_objectives(cfg: DictConfig, key: str, value, names: list[str]) -
 
 
 def check_settings(cfg: DictConfig) -> None:
-    """transfer.adapt_objectives, scratch_objective and baseline, each a one-line ConfigError naming the key."""
+    """transfer.adapt_objectives, scratch_objective, anchored_objectives and baseline, each a one-line ConfigError
+    naming the key."""
     t = cfg.transfer
     adapt = [str(o) for o in t.adapt_objectives]
     twice = sorted({o for o in adapt if adapt.count(o) > 1})
@@ -137,6 +144,8 @@ def check_settings(cfg: DictConfig) -> None:
     _label_free_objectives(cfg, "transfer.adapt_objectives", adapt, adapt)
     # the labelled objective from scratch on the target is the oracle row already
     _label_free_objectives(cfg, "transfer.scratch_objective", str(t.scratch_objective), [str(t.scratch_objective)])
+    anchored = [str(o) for o in t.get("anchored_objectives") or []]
+    _label_free_objectives(cfg, "transfer.anchored_objectives", anchored, anchored)
     if t.baseline is not None and str(t.baseline) not in _presets("baseline"):
         bad(
             "transfer.baseline",
@@ -193,6 +202,10 @@ def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, li
         scratch = t.scratch_objective
         where = job_dir / name / _subdir("scratch", scratch)
         runs.append(("train", variant(goal, scratch), where, tag + [f"row={scratch_row(scratch)}"], None))
+        for objective in t.get("anchored_objectives") or []:
+            anchored = variant(goal, objective, model=composed("model", "anchored", "transfer.anchored_objectives"))
+            where = job_dir / name / f"anchored_{objective}"
+            runs.append(("train", anchored, where, tag + [f"row={anchored_row(objective)}"], None))
         runs.append(("train", variant(goal, "labelled"), job_dir / name / "oracle", tag + [f"row={ORACLE}"], None))
         if t.baseline is not None:
             # an ordinary baseline run (cfg.baseline set): training.run.train evaluates it without a network
