@@ -11,7 +11,7 @@ from hybrid_sysid.model.base import Baseline, Network, Objective, lacks, members
 
 def test_the_interfaces_name_what_each_kind_provides():
     assert members(Network) == ["prior_arguments", "window_bounds", "output_bounds", "__call__"]
-    assert members(Objective) == ["uses_labels", "fir", "monitor", "__call__"]
+    assert members(Objective) == ["uses_labels", "fir", "outside_fir", "monitor", "__call__"]
     assert members(Baseline) == ["predict_split", "fit_seconds", "check_lengths", "estimate"]
 
 
@@ -22,6 +22,8 @@ def test_the_interfaces_name_what_each_kind_provides():
         ("model.net", "hybrid_sysid.model.networks.PaperCNN"),
         ("objective", "hybrid_sysid.model.objectives.HybridObjective"),
         ("objective", "hybrid_sysid.model.objectives.CombinedObjective"),
+        ("objective", "hybrid_sysid.model.objectives.LabelledObjective"),
+        ("objective", "hybrid_sysid.model.cross_segment.CrossSegmentObjective"),
         ("baseline", "hybrid_sysid.baselines.LeastSquaresFit"),
     ],
 )
@@ -36,7 +38,7 @@ def test_every_class_of_the_package_meets_its_interface(key, target):
         # a class of the package that is not a network: named with what it lacks
         ("model.net", "hybrid_sysid.model.module.IdentificationModule", "a class with prior_arguments, window_bounds"),
         ("model.net", "hybrid_sysid.model.objectives.LabelledObjective", "a class with prior_arguments"),
-        ("objective", "hybrid_sysid.model.networks.FastCNN", "a class with uses_labels, fir, monitor"),
+        ("objective", "hybrid_sysid.model.networks.FastCNN", "a class with uses_labels, fir, outside_fir, monitor"),
         # names that are no class of the package: refused before anything is imported from elsewhere
         ("model.net", "os.system", "a class of hybrid_sysid.model"),
         ("model.net", "hybrid_sysid.model.networks.nn", "there is none of that name"),

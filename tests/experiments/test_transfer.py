@@ -301,7 +301,8 @@ def test_the_field_plan(make_cfg, tmp_path):
         (
             {"transfer.adapt_objectives": ["hybrid", "labelled"]},
             r"transfer.adapt_objectives = \['hybrid', 'labelled'\] is not allowed: labelled: it reads labels; "
-            r"a label-free objective preset \(conf/objective\): hybrid, hybrid_bandpass, hybrid_eiv, label_free$",
+            r"a label-free objective preset \(conf/objective\): cross_segment, hybrid, hybrid_bandpass, hybrid_eiv, "
+            r"label_free$",
         ),
         (
             {"transfer.adapt_objectives": ["label_free", "hybrid", "label_free"]},

@@ -59,6 +59,9 @@ class NoiseConfig:
     # the test noise levels of the final evaluation and the learning curves (hybrid_sysid.training)
     eval_std: List[float] = field(default_factory=lambda: [0.0, 0.01])
     train_std: float = 0.0
+    # set: each training window's std log-uniform in [train_std, train_std_max], validation at their geometric
+    # mean (docs/noise.md); null: every window at train_std
+    train_std_max: Optional[float] = None
     # the learning curves' test noise levels; null: every level of eval_std
     curve_std: Optional[List[float]] = None
 

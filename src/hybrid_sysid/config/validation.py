@@ -33,6 +33,7 @@ CONFIG_PATHS = {
     "taps": "objective.filter.taps",
     "batch_size": "model.batch_size",
     "train_std": "noise.train_std",
+    "train_std_max": "noise.train_std_max",
 }
 
 
@@ -66,7 +67,7 @@ def validate(cfg: DictConfig) -> None:
     check_memory(cfg.data.n_roads, cfg.data.n_masses, cfg.data.n_steps)  # against the memory the process may use
     spec = DatasetSpec.from_config(cfg)
     with _placed():
-        BatchSettings(cfg.model.batch_size, cfg.noise.train_std).validate()
+        BatchSettings(cfg.model.batch_size, cfg.noise.train_std, cfg.noise.get("train_std_max")).validate()
         spec.validate()  # its stability search of the time step last: the one check that costs
     if cfg.get("baseline") is not None:  # each checks the window against what it reads
         _validate_baseline(cfg, spec)
@@ -195,8 +196,9 @@ def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
     except Exception as exc:  # noqa: BLE001 - e.g. a value of the wrong type
         raise ConfigError("model.net", allowed=_one_line(exc)) from exc
     objective = _built(cfg, "objective")
+    taps, outside = (None if f is None else len(f) for f in (objective.fir, objective.outside_fir))
     with _placed():
-        WindowSettings.from_config(cfg).validate(spec, bounds, None if objective.fir is None else len(objective.fir))
+        WindowSettings.from_config(cfg).validate(spec, bounds, taps, outside)
     import torch
 
     net = _built(cfg, "model.net")

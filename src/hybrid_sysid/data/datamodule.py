@@ -21,14 +21,17 @@ class QuarterCarDataModule(L.LightningDataModule):
     Training: an endless stream of random windows (``RandomWindows``), optional noise ``train_std``; its
     position is the data module's state in a checkpoint, so a resumed run draws the batches an uninterrupted
     one would.
-    Validation windows carry noise of std ``train_std`` (none when training is clean).
+    ``train_std_max`` (None: off): each training window's noise std log-uniform in [train_std, train_std_max].
+    Validation windows carry noise of std ``train_std``, or the range's geometric mean (none when training is clean).
     Evaluation: one fixed, seeded window per recording (or K of them: ``eval_batch(windows=K)``); Gaussian
     noise of the std asked for (the config's noise.eval_std, through hybrid_sysid.training.evaluation) added to
     both channels, from one seeded standard-normal draw per split scaled to each level (so levels differ only in
     size, which keeps robustness curves smooth).
 
     ``fir``: the objective's band-pass taps (``objective.fir``), so the batches carry the filtered signals the
-    objective reads; None for an objective without a filter.
+    objective reads; None for an objective without a filter. ``outside_fir``: the objective's band-pass of the fit
+    over each window's outside samples (hybrid_sysid.data.outside), whose "p_out" and "se_out" the training and
+    evaluation batches then carry.
     """
 
     def __init__(
@@ -44,17 +47,22 @@ class QuarterCarDataModule(L.LightningDataModule):
         seed: int = 0,
         integration: str = "t0",
         fir: np.ndarray | None = None,
+        train_std_max: float | None = None,
+        outside_fir: np.ndarray | None = None,
     ):
         super().__init__()
         spec.validate()
         self.settings = WindowSettings(window, integration, train_fraction, val_fraction)
-        self.settings.validate(spec, taps=None if fir is None else len(fir))
-        BatchSettings(batch_size, train_std).validate()
+        outside_taps = None if outside_fir is None else len(outside_fir)
+        self.settings.validate(spec, taps=None if fir is None else len(fir), outside_taps=outside_taps)
+        self.batch_settings = BatchSettings(batch_size, train_std, train_std_max)
+        self.batch_settings.validate()
         self.split = self.settings.split(spec)
         self.spec, self.cache_dir, self.window = spec, cache_dir, window
         self.batch_size, self.eval_batch_size = batch_size, eval_batch_size
         self.train_std, self.seed = float(train_std), seed
-        self.integration, self.fir = integration, fir
+        self.integration, self.fir, self.outside_fir = integration, fir, outside_fir
+        self.train_std_max = None if train_std_max is None else float(train_std_max)
         self.dataset: SimulatedDataset | None = None
         self.data: WindowCutter | None = None
         self.train_windows: RandomWindows | None = None
@@ -66,8 +74,9 @@ class QuarterCarDataModule(L.LightningDataModule):
     def setup(self, stage: str | None = None) -> None:
         if self.data is None:
             self.dataset = self._get_dataset()
-            self.data = WindowCutter(self.dataset, self.window, self.integration, self.fir)
-            self.train_windows = RandomWindows(self.data, self.split.train, self.batch_size, self.seed, self.train_std)
+            self.data = WindowCutter(self.dataset, self.window, self.integration, self.fir, self.outside_fir)
+            rows, std, std_max = self.split.train, self.train_std, self.train_std_max
+            self.train_windows = RandomWindows(self.data, rows, self.batch_size, self.seed, std, noise_std_max=std_max)
 
     def _get_dataset(self) -> SimulatedDataset:
         # simulating runs numba's parallel kernel, whose OpenMP runtime torch shares: it leaves torch at numba's
@@ -99,7 +108,8 @@ class QuarterCarDataModule(L.LightningDataModule):
         real recording; averaging K windows then gains only what one recording honestly offers, and each window's
         integrated noise starts from the state that series has reached. K = 1 draws noise for its window alone
         and that state from its exact Gaussian (``start_state``): statistically the same thing, without a
-        series-long draw.
+        series-long draw. With the data's ``outside`` fit, its noise is one more seeded draw per recording over
+        the whole recording (key 3000; every window of a recording fits with it), scaled to each level.
         """
         check_eval_windows([int(windows) if isinstance(windows, np.integer) else windows], self.n_starts())
         key = (split, float(noise_std), limit, int(windows))
@@ -131,6 +141,13 @@ class QuarterCarDataModule(L.LightningDataModule):
             batch = self.data.batch(rows, starts)
         else:
             batch = self.data.batch(rows, starts, noise_std * base, noise_std * state)
+        if self.data.outside is not None:
+            normals = None
+            if noise_std > 0:  # the first rows of the split's draw: a limited batch is a prefix of the full one
+                n = len(rows) // windows
+                g = np.random.default_rng([self.seed, code, 3000])
+                normals = np.repeat(g.standard_normal((n, 2, self.spec.n_steps), dtype=np.float32), windows, axis=0)
+            batch.update(self.data.outside.fit(rows, starts, noise_std, normals))
         if windows == 1:  # K > 1 serves the final evaluation once; keep only K = 1 (curves reuse it)
             self._eval_cache[key] = batch
         return batch
@@ -216,5 +233,5 @@ class QuarterCarDataModule(L.LightningDataModule):
 
     def val_dataloader(self) -> DataLoader:
         # with training noise, validation windows carry it too: label-free model selection (val/loss) then
-        # judges what training optimises, noise included
-        return self.eval_dataloader("val", self.train_std)
+        # judges what training optimises, noise included (a range's geometric mean, its middle in log std)
+        return self.eval_dataloader("val", self.batch_settings.val_std)

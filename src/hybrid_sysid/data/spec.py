@@ -127,9 +127,16 @@ class WindowSettings:
     train_fraction: float = 0.8  # of the roads; the rest are test roads
     val_fraction: float = 0.125  # of the training roads, held out for model selection
 
-    def validate(self, spec: DatasetSpec, bounds: tuple[int, int | None] = (1, None), taps: int | None = None) -> None:
+    def validate(
+        self,
+        spec: DatasetSpec,
+        bounds: tuple[int, int | None] = (1, None),
+        taps: int | None = None,
+        outside_taps: int | None = None,
+    ) -> None:
         """ConfigError naming the field; ``bounds``: the shortest and longest window the network reads (None: any),
-        ``taps``: the length of a band-pass that each window must leave MIN_FILTERED samples of (the objective's)."""
+        ``taps``: the length of a band-pass that each window must leave MIN_FILTERED samples of (the objective's),
+        ``outside_taps``: that of the fit over the samples outside each window (``check_outside_fits``)."""
         check_choice("integration", self.integration, INTEGRATIONS)
         low, high = bounds
         top = spec.n_steps if high is None else min(high, spec.n_steps)
@@ -138,6 +145,7 @@ class WindowSettings:
             bad("window", self.window, f"must lie in [{low}, n_steps = {top}]{why}")
         self.split(spec)
         check_filter_fits(taps, self.window, "taps", "window")
+        check_outside_fits(outside_taps, spec.n_steps, self.window)
 
     @classmethod
     def from_config(cls, cfg) -> "WindowSettings":
@@ -171,6 +179,29 @@ def check_filter_fits(taps: int | None, length: int, key: str, length_key: str) 
         )
 
 
+def outside_samples(n_steps: int, window: int, taps: int) -> int:
+    """The fewest band-passed samples outside a window that any window start leaves: those whose whole FIR support
+    lies before or after it, least for a window at least taps - 1 steps from either end."""
+    return max(0, n_steps - window - 2 * (taps - 1))
+
+
+def check_outside_fits(taps: int | None, n_steps: int, window: int) -> None:
+    """A band-pass of ``taps`` over the rest of a recording (objective=cross_segment) must leave, outside every
+    window, 2 (taps + MIN_FILTERED - 1) filtered samples: about two FIR lengths, so the fit spans more than the
+    filter's own correlation of the noise."""
+    if taps is None:
+        return
+    need = 2 * (taps + MIN_FILTERED - 1)
+    if outside_samples(n_steps, window, taps) < need:
+        bad(
+            "n_steps",
+            n_steps,
+            f"must be >= data.window + 2 (objective.filter.taps - 1) + {need} = {window + 2 * (taps - 1) + need} "
+            f"(window {window}, taps {taps}): the fit over the samples outside a window needs {need} band-passed "
+            "samples; lengthen the recordings, shorten the window or the taps",
+        )
+
+
 def check_eval_windows(windows, n_starts: int, key: str = "windows") -> None:
     """K values, each an integer in [1, the window starts a recording offers] (evaluation.windows)."""
     windows = list(windows)
@@ -189,7 +220,22 @@ class BatchSettings:
 
     batch_size: int = 64
     train_std: float = 0.0  # m/s^2, on both channels
+    # m/s^2; set: each training window's std is log-uniform in [train_std, train_std_max] (None: train_std alone)
+    train_std_max: float | None = None
 
     def validate(self) -> None:
         check_int("batch_size", self.batch_size, 1)
         check_number("train_std", self.train_std, 0, unit="m/s^2")
+        if self.train_std_max is not None:
+            if not self.train_std > 0:
+                bad(
+                    "train_std_max", self.train_std_max, "null unless train_std > 0 (the bottom of a log-uniform range)"
+                )
+            check_number("train_std_max", self.train_std_max, self.train_std, low_open=True, unit="m/s^2, > train_std")
+
+    @property
+    def val_std(self) -> float:
+        """The noise std of the validation windows: train_std, or the geometric mean of the training range."""
+        if self.train_std_max is None:
+            return float(self.train_std)
+        return math.sqrt(self.train_std * self.train_std_max)

@@ -15,6 +15,7 @@ from torch.utils.data import IterableDataset
 from hybrid_sysid.core.checks import check_choice
 from hybrid_sysid.core.options import INTEGRATION_RULES
 from hybrid_sysid.data.dataset import SimulatedDataset
+from hybrid_sysid.data.outside import OutsideFit
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import fir_valid
 
@@ -97,9 +98,19 @@ class WindowCutter:
     samples). The clean part is filtered once per recording in float64 here; the noise part per batch by a
     torch FFT convolution in float32 (noise alone, without the offsets of the states before the window). Both
     integrations give the same filtered signals (the filter removes the offsets).
+
+    ``outside_fir`` (the objective's, or None): ``outside`` is then the fit over each window's outside samples
+    (hybrid_sysid.data.outside), whose "p_out" and "se_out" the training and evaluation batches carry.
     """
 
-    def __init__(self, ds: SimulatedDataset, window: int, integration: str = "t0", fir: np.ndarray | None = None):
+    def __init__(
+        self,
+        ds: SimulatedDataset,
+        window: int,
+        integration: str = "t0",
+        fir: np.ndarray | None = None,
+        outside_fir: np.ndarray | None = None,
+    ):
         self.dt = ds.spec.dt
         self.measurement = ds.spec.measurement
         self.rule = RULES[self.measurement]
@@ -108,6 +119,9 @@ class WindowCutter:
         self.rel_vel, self.rel_disp = _windows(ds.rel_vel, window), _windows(ds.rel_disp, window)
         self.params = torch.from_numpy(ds.params.astype(np.float32))
         self.n_steps = ds.seat_acc.shape[1]
+        self.outside = None
+        if outside_fir is not None:
+            self.outside = OutsideFit(ds.seat_acc, ds.body_acc, self.dt, self.measurement, window, outside_fir)
         self.fir = None
         if fir is not None:
             fir = np.asarray(fir, dtype=np.float64)
@@ -184,13 +198,26 @@ class RandomWindows(IterableDataset):
 
     ``rank`` (several devices, DDP) picks the stream: rank 0 draws the one-device stream, rank r > 0 its own,
     seeded by (seed, e, r), so N ranks see N different batches per step.
+
+    ``noise_std_max`` (None: every window at ``noise_std``): each window's std is log-uniform in [noise_std,
+    noise_std_max], from a generator of its own per batch (key 4000 + e), so the windows' standard normals are
+    those of a stream without it. With the data's ``outside`` fit, a batch also carries "p_out" and "se_out":
+    fresh noise of each row's std over its whole recording, from another generator per batch (key 3000 + e).
     """
 
     def __init__(
-        self, data: WindowCutter, rows: np.ndarray, batch_size: int, seed: int, noise_std: float = 0.0, rank: int = 0
+        self,
+        data: WindowCutter,
+        rows: np.ndarray,
+        batch_size: int,
+        seed: int,
+        noise_std: float = 0.0,
+        rank: int = 0,
+        noise_std_max: float | None = None,
     ):
         self.data, self.rows, self.batch_size = data, rows, batch_size
         self.seed, self.noise_std, self.start_batch, self.rank = seed, noise_std, 0, rank
+        self.noise_std_max = noise_std_max
 
     def _key(self, *parts: int) -> list[int]:
         return [self.seed, *parts] + ([self.rank] if self.rank else [])
@@ -209,6 +236,11 @@ class RandomWindows(IterableDataset):
             yield from self.one_pass(e, skip)
             e, skip = e + 1, 0
 
+    def row_stds(self, e: int, b: int, n: int) -> np.ndarray:
+        """The noise std of each of the n windows of batch b of pass e: log-uniform in [noise_std, noise_std_max]."""
+        g = np.random.default_rng(self._key(4000 + e, b))
+        return np.exp(g.uniform(np.log(self.noise_std), np.log(self.noise_std_max), size=n))
+
     def one_pass(self, e: int, skip: int = 0) -> Iterator[dict[str, torch.Tensor]]:
         rng = np.random.default_rng(self._key(1000 + e))
         order = rng.permutation(self.rows)
@@ -216,13 +248,24 @@ class RandomWindows(IterableDataset):
         for b in range(skip, self.batches_per_pass):
             sl = slice(b * self.batch_size, (b + 1) * self.batch_size)
             noise = state = None
+            std = self.noise_std
             if self.noise_std > 0:  # one generator per batch, so a resumed stream draws the same noise
+                if self.noise_std_max is not None:
+                    std = self.row_stds(e, b, len(order[sl]))
+                std_w, std_s = (std, std) if np.isscalar(std) else (std[:, None, None], std[:, None])
                 noise_rng = np.random.default_rng(self._key(2000 + e, b))
-                noise = self.noise_std * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
-                state = self.noise_std * start_state(
+                noise = std_w * noise_rng.standard_normal((len(order[sl]), 2, self.data.window))
+                state = std_s * start_state(
                     starts[sl], self.data.dt, noise_rng.standard_normal((len(order[sl]), 2)), self.data.rule
                 )
-            yield self.data.batch(order[sl], starts[sl], noise, state)
+            batch = self.data.batch(order[sl], starts[sl], noise, state)
+            if self.data.outside is not None:
+                normals = None
+                if self.noise_std > 0:
+                    g = np.random.default_rng(self._key(3000 + e, b))
+                    normals = g.standard_normal((len(order[sl]), 2, self.data.n_steps))
+                batch.update(self.data.outside.fit(order[sl], starts[sl], std, normals))
+            yield batch
 
     def __iter__(self) -> Iterator[dict[str, torch.Tensor]]:
         return self.passes(self.start_batch)

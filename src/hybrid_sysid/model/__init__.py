@@ -1,6 +1,7 @@
-"""Parameter estimators (CNNs), training objectives (labelled, hybrid, combined), the LightningModule around them,
-what each of them provides (base: the Network, Objective and Baseline protocols) and the relative deviation (eq. 24,
-metrics). base, metrics and optim load no torch; the classes below load it when first named."""
+"""Parameter estimators (CNNs), training objectives (labelled, hybrid, combined, cross_segment), the
+LightningModule around them, what each of them provides (base: the Network, Objective and Baseline protocols) and
+the relative deviation (eq. 24, metrics). base, metrics and optim load no torch; the classes below load it when
+first named."""
 
 from hybrid_sysid.model.base import Baseline, Network, Objective, SplitPredictor
 
@@ -11,6 +12,7 @@ _LAZY = {
     "LabelledObjective": "objectives",
     "HybridObjective": "objectives",
     "CombinedObjective": "objectives",
+    "CrossSegmentObjective": "cross_segment",
     "IdentificationModule": "module",
 }
 

@@ -45,11 +45,14 @@ class Network(Protocol):
 
 class Objective(Protocol):
     """A torch module ``loss = objective(pred, batch)``: pred (B, 2) p in physical units, batch the data module's
-    dict (hybrid_sysid.data.windows: "signals", "params", "rel_vel", "rel_disp" and, with ``fir``, "seat_f",
-    "rel_vel_f", "rel_disp_f")."""
+    dict (hybrid_sysid.data.windows: "signals", "params", "rel_vel", "rel_disp"; with ``fir``, "seat_f",
+    "rel_vel_f", "rel_disp_f"; with ``outside_fir``, "p_out", "se_out")."""
 
     uses_labels: bool  # whether it reads batch["params"]; a label-free objective never does
     fir: np.ndarray | None  # the band-pass taps the batches must carry filtered signals through (None: none)
+    # the band-pass of the least-squares fit over each window's outside samples (the rest of its recording): the
+    # batches then carry that fit's "p_out" and "se_out" (B, 2); None: not needed
+    outside_fir: np.ndarray | None
     monitor: str  # its model-selection figure under trainer.monitor=auto: val/rel_dev reads labels, val/loss not
 
     def __call__(self, pred, batch): ...

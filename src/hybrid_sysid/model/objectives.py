@@ -56,6 +56,7 @@ class LabelledObjective(nn.Module):
     uses_labels = True
     monitor = LABELLED
     fir = None  # no band-pass: the data module adds no filtered signals to the batches
+    outside_fir = None  # no fit over the rest of the recording
 
     def __init__(self, p_scale: Sequence[float]):
         super().__init__()
@@ -101,6 +102,7 @@ class HybridObjective(nn.Module):
     uses_labels = False
     monitor = LABEL_FREE
     fir: np.ndarray | None = None  # the band-pass taps (float64) with a filter (set below)
+    outside_fir = None
 
     def __init__(
         self,
@@ -188,6 +190,7 @@ class CombinedObjective(nn.Module):
     uses_labels = True
     monitor = LABELLED
     fir: np.ndarray | None = None
+    outside_fir = None
 
     def __init__(
         self,

@@ -26,8 +26,9 @@ def build_objective(cfg: DictConfig):
 
 
 def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
-    """The data module; when the objective reads band-passed signals (its ``fir``), the batches carry them.
-    ``objective``: the run's, else built from the config (none for a baseline)."""
+    """The data module; when the objective reads band-passed signals (its ``fir``) or the fit over each window's
+    outside samples (its ``outside_fir``), the batches carry them. ``objective``: the run's, else built from the
+    config (none for a baseline)."""
     if objective is None and cfg.get("baseline") is None:
         objective = build_objective(cfg)
     d = cfg.data
@@ -42,6 +43,8 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
         seed=cfg.seed,
         integration=d.integration,
         fir=None if objective is None else objective.fir,
+        train_std_max=cfg.noise.get("train_std_max"),
+        outside_fir=None if objective is None else objective.outside_fir,
     )
 
 

@@ -1,0 +1,68 @@
+"""The least-squares fit of the seat equation over the rest of a window's recording: the target of
+``objective=cross_segment`` (hybrid_sysid.model.cross_segment), computed with the batches.
+
+Per batch row: the whole clean recording plus fresh Gaussian noise of the row's std, re-integrated from t0 by the
+recording's measurement, band-passed ('valid') and fitted (physics.seat_fit) on the filtered samples whose whole FIR
+support lies outside the window [start, start + W). Those samples read no sample of the window. The noise the
+window's own samples add to the regressors after it integrates to a constant in rel_vel and a constant and a ramp
+in rel_disp, which a symmetric band-pass of zero sum removes. So the fit's noise is independent of the window's,
+as in a recording whose sensor noise is white, and the fit carries information the window lacks.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import torch
+
+from hybrid_sysid.physics import relative_states
+from hybrid_sysid.physics.seat_fit import fit_seat
+
+CHUNK = 256  # rows filtered at once: bounds the float64 work arrays of a large evaluation batch (~30 MB)
+
+
+class OutsideFit:
+    """The outside fit of the windows of one dataset: ``fit(rows, starts, std, normals)`` -> {"p_out", "se_out"}.
+
+    ``fir``: the objective's band-pass taps (``outside_fir``). The clean recordings are the dataset's float32
+    channels, read as they are stored (no copy until a batch takes its rows).
+    """
+
+    def __init__(self, seat_acc: np.ndarray, body_acc: np.ndarray, dt: float, measurement: str, window: int, fir):
+        self.seat, self.body = seat_acc, body_acc
+        self.dt, self.measurement, self.window = dt, measurement, window
+        self.fir = np.asarray(fir, dtype=np.float64)
+        self.n_steps = seat_acc.shape[1]
+        # torch's FFT in float64 takes about a third of numpy's time here (physics.filters.fir_valid's), the
+        # larger part of this fit's cost; a transform as long as the recording suffices, as the circular
+        # wrap-around reaches only the taps - 1 edge samples that 'valid' drops
+        self.nfft = 1 << int(np.ceil(np.log2(self.n_steps)))
+        self.fir_fft = torch.fft.rfft(torch.from_numpy(self.fir), self.nfft)
+
+    def mask(self, starts) -> np.ndarray:
+        """(B, n_steps - taps + 1) of 1.0 where the filtered sample's FIR support (inputs j .. j + taps - 1) lies
+        wholly before or after the window at each start, 0.0 elsewhere."""
+        taps = len(self.fir)
+        j = np.arange(self.n_steps - taps + 1)
+        s = np.asarray(starts, dtype=np.int64)[:, None]
+        return ((j + taps - 1 < s) | (j >= s + self.window)).astype(np.float64)
+
+    def fit(self, rows, starts, std=0.0, normals: np.ndarray | None = None) -> dict[str, torch.Tensor]:
+        """The batch's "p_out" and "se_out" (B, 2) float64: the fitted p and its relative standard error (NaN
+        and inf where the fit is not defined). ``normals`` (B, 2, n_steps) standard normals on the seat and body
+        channels, scaled by ``std`` (a number, or one per row); None: the clean recordings."""
+        rows, starts = np.asarray(rows, dtype=np.int64), np.asarray(starts, dtype=np.int64)
+        stds = np.broadcast_to(np.asarray(std, dtype=np.float64), rows.shape)
+        p, se = np.empty((len(rows), 2)), np.empty((len(rows), 2))
+        for i in range(0, len(rows), CHUNK):
+            sl = slice(i, i + CHUNK)
+            seat = self.seat[rows[sl]].astype(np.float64)
+            body = self.body[rows[sl]].astype(np.float64)
+            if normals is not None:
+                seat += stds[sl, None] * normals[sl, 0]
+                body += stds[sl, None] * normals[sl, 1]
+            rel_vel, rel_disp = relative_states(seat, body, self.dt, self.measurement)
+            spectra = torch.fft.rfft(torch.from_numpy(np.stack([seat, rel_vel, rel_disp])), self.nfft)
+            filtered = torch.fft.irfft(spectra * self.fir_fft, self.nfft)[..., len(self.fir) - 1 : self.n_steps].numpy()
+            out = fit_seat(*filtered, weights=self.mask(starts[sl]))
+            p[sl], se[sl] = out.p, out.se
+        return {"p_out": torch.from_numpy(p), "se_out": torch.from_numpy(se)}

@@ -1,0 +1,61 @@
+"""A label-free target from the rest of the recording: ``objective=cross_segment`` (docs/label_free.md).
+
+The label_free objective fits the network to each window's own least-squares p, a function of the very samples the
+network reads: the target carries that window's noise, and the network learns it. Here the target is the
+band-passed least-squares p over the recording's samples outside the window (``p_out``), whose sensor noise is
+independent of the window's. The data module computes it (hybrid_sysid.data.windows, ``WindowCutter.outside``)
+when an objective asks through ``outside_fir``.
+"""
+
+from __future__ import annotations
+
+from typing import Sequence
+
+import numpy as np
+import torch
+from torch import nn
+
+from hybrid_sysid.core.checks import ConfigError, check_number, check_pair
+from hybrid_sysid.model.objectives import LABEL_FREE
+from hybrid_sysid.physics.filters import filter_taps
+
+
+class CrossSegmentObjective(nn.Module):
+    """Mean over the batch of sum_i w_i |p_i - p_out_i| / p_scale_i, without a label read.
+
+    p_out: the band-passed least-squares fit of the seat equation over the samples of the window's recording whose
+    whole FIR support lies outside the window; se_out: that fit's relative standard error (physics.seat_fit).
+    w_i = 1 / (se_out_i + ``floor``), divided by its mean over the batch, per parameter: each parameter keeps the
+    total weight the labelled objective gives it, and within it a row counts by how well its outside fit is
+    determined. The floor stops rounding from ranking near-exact fits: below it (1% by default) every fit counts
+    alike, and on clean recordings the loss is the labelled one to about 1e-5. A row whose outside fit is not
+    defined (NaN) gets weight 0. Model selection: the same loss on the validation windows (``val/loss``).
+    """
+
+    uses_labels = False
+    monitor = LABEL_FREE
+    fir = None  # the network's window needs no filtered signals: only the outside fit is band-passed
+    outside_fir: np.ndarray | None = None  # set below: the band-pass of the outside fit
+
+    def __init__(self, p_scale: Sequence[float], filter: dict, dt: float | None = None, floor: float = 0.01):
+        super().__init__()
+        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
+        self.floor = check_number("floor", floor, 0, low_open=True, unit="a relative standard error")
+        if dt is None:
+            raise ConfigError("dt", missing=True, allowed="the band-pass needs the data's step (${data.dt})")
+        self.filter = dict(filter)
+        self.outside_fir = filter_taps(self.filter, dt)
+
+    def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
+        if "p_out" not in batch:
+            raise KeyError(
+                "the batch has no p_out: build the data module with the objective's outside_fir "
+                "(hybrid_sysid.training.build.build_datamodule does)"
+            )
+        p_out, se_out = (batch[k].to(pred) for k in ("p_out", "se_out"))
+        valid = torch.isfinite(p_out) & torch.isfinite(se_out)
+        w = torch.where(valid, 1.0 / (se_out.clamp_min(0.0) + self.floor), 0.0)
+        # a column without any defined fit keeps weight 0 (and the loss its gradient path) rather than 0 / 0
+        w = w / w.mean(dim=0).clamp_min(torch.finfo(w.dtype).tiny)
+        err = (pred - torch.where(valid, p_out, pred.detach())) / self.p_scale
+        return (w * err.abs()).sum(dim=1).mean()
