@@ -67,6 +67,17 @@ class NoiseConfig:
 
 
 @dataclass
+class SensorConfig:
+    """The recording's sensor faults (conf/sensor; physics.sensors.SensorFaults, docs/faults.md), all off by
+    default; drawn per recording, part of the dataset's cache key when on."""
+
+    gain_spread: float = 0.0  # each sensor's gain uniform in [1 - s, 1 + s]
+    skew_max: float = 0.0  # seconds: the body sensor's delay against the seat sensor, uniform in [-skew_max, skew_max]
+    lowpass_hz: Optional[List[float]] = None  # [seat, body] cut-offs, Hz, of a 2nd-order Butterworth per sensor
+    lowpass_range_hz: Optional[List[float]] = None  # [lo, hi] Hz: each sensor of each recording draws its cut-off
+
+
+@dataclass
 class OptimConfig:
     name: str = "adamw"
     lr: float = 3e-3
@@ -156,6 +167,7 @@ class Config:
     paths: PathsConfig = field(default_factory=PathsConfig)  # where runs, sweeps, cache and trackers go (conf/paths)
     # the car's constants (QuarterCar's fields; the group conf/car, car=paper by default), e.g. car.c3=700
     car: Dict[str, float] = field(default_factory=lambda: asdict(QuarterCar()))
+    sensor: SensorConfig = field(default_factory=SensorConfig)  # the recording's sensor faults (conf/sensor)
     transfer: Optional[TransferConfig] = None  # task=transfer's settings
     tuned: Optional[TunedConfig] = None  # task=tuned's settings
 
@@ -176,6 +188,7 @@ SECTIONS = {
     "data": DataConfig,
     "road": RoadConfig,
     "noise": NoiseConfig,
+    "sensor": SensorConfig,
     "model": ModelConfig,
     "model.optim": OptimConfig,
     "trainer": TrainerConfig,

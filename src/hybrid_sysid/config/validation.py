@@ -38,8 +38,9 @@ CONFIG_PATHS = {
 
 
 def config_key(key: str) -> str:
-    """The config key of an argument of DatasetSpec, WindowSettings or BatchSettings (``car.<constant>`` stays)."""
-    if key.startswith("car."):
+    """The config key of an argument of DatasetSpec, WindowSettings or BatchSettings (``car.<constant>`` and
+    ``sensor.<key>`` stay)."""
+    if key.startswith(("car.", "sensor.")):
         return key
     return CONFIG_PATHS.get(key, f"data.{key}")
 

@@ -3,10 +3,16 @@
 Recordings are stored road-major (recording = road * n_masses + mass index): a split by road (data.splits) takes
 whole roads, so no test road is ever seen in training. The on-disk cache is
 hybrid_sysid.data.cache.
+
+With sensor faults (``data.sensor``, physics.sensors) the recorded channels are those of the faulty sensors, and
+rel_vel and rel_disp are re-integrated from them, as a user would from such a recording; the labels stay the
+true p. Each recording draws its faults from a generator of its own, seeded [data.seed, FAULT_STREAM], so the
+clean draws (classes, masses, roads, seat constants) are those of the same dataset without faults.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,9 +28,15 @@ from hybrid_sysid.physics import (
     wave_numbers,
 )
 from hybrid_sysid.physics.compiled import simulate_recordings
+from hybrid_sysid.physics.compiled_sensors import apply_faults, simulate_faulted
+from hybrid_sysid.physics.sensors import FaultDraws
 
 CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
 ARRAYS = CHANNELS + ("params", "m3", "c3", "k3", "road_id", "road_class")  # what a dataset holds, and the cache
+FAULT_STREAM = 0x5E2503  # the second word of the fault draws' seed, [data.seed, FAULT_STREAM]
+# the skew's interpolator: 25 taps, within ~1.2e-8 of the signal's peak up to half the Nyquist frequency
+# (docs/faults.md), below the float32 rounding of the stored channels (6e-8 of a value)
+DELAY_HALF_WIDTH = 12
 
 
 @dataclass
@@ -51,19 +63,36 @@ class SimulatedDataset:
         return sum(getattr(self, n).nbytes for n in ARRAYS)
 
 
+def fault_draws(spec: DatasetSpec) -> FaultDraws:
+    """Every recording's sensor faults (gains, skews in seconds, cut-offs in Hz), as generate_dataset draws them."""
+    n = spec.n_roads * spec.n_masses
+    return spec.sensor.draw(n, np.random.default_rng([spec.seed, FAULT_STREAM]))
+
+
+def skew_margin(spec: DatasetSpec) -> int:
+    """Steps simulated past a recording's end, and rest (zeros) put before its start, for the skew's delay to read:
+    then every sample of the recording is interpolated from true samples, none from an edge's extension."""
+    if not spec.sensor.skew_max:
+        return 0
+    return DELAY_HALF_WIDTH + math.ceil(spec.sensor.skew_max / spec.dt) + 1
+
+
 def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
     """Simulate every mass on every road.
 
     The compiled kernel (physics.compiled) steps the simulation in float64 and writes the float32 channels
-    directly: the same numbers as ``simulate`` and ``relative_states`` cast to float32.
+    directly: the same numbers as ``simulate`` and ``relative_states`` cast to float32. With sensor faults, the
+    float64 channels go through ``physics.sensors.apply`` and are re-integrated before the cast, block by block
+    inside the kernel (physics.compiled_sensors).
     """
     spec.validate()
     rng = np.random.default_rng(spec.seed)
     classes = spec.road_class(rng)
     masses = rng.integers(spec.m3_min, spec.m3_max + 1, size=(spec.n_roads, spec.n_masses)).astype(float).ravel()
     road_id = np.repeat(np.arange(spec.n_roads), spec.n_masses)
-    if spec.measurement in STEPPED:
-        roads = road_profiles(classes, spec.n_steps, spec.dt, spec.speed, spec.n_waves, rng)
+    margin = skew_margin(spec)
+    if spec.measurement in STEPPED:  # a longer road starts as the same road: the phases do not depend on its length
+        roads = road_profiles(classes, spec.n_steps + margin, spec.dt, spec.speed, spec.n_waves, rng)
     else:  # the same draw of phases; the road stays analytic
         phases = road_phases(spec.n_roads, spec.n_waves, rng)
     c3, k3 = np.full(len(masses), spec.car.c3), np.full(len(masses), spec.car.k3)
@@ -73,8 +102,13 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
         k3 = spec.car.k3 * rng.uniform(1 - s, 1 + s, size=len(masses))
 
     # float64 physics ends here: the network and the objectives work in float32
+    draws = fault_draws(spec) if spec.sensor.active else None
     if spec.measurement in STEPPED:
-        channels = simulate_recordings(roads, road_id, masses, spec.dt, spec.car, spec.measurement, c3=c3, k3=k3)
+        arguments = (roads, road_id, masses, spec.dt, spec.car, spec.measurement)
+        if draws is None:
+            channels = simulate_recordings(*arguments, c3=c3, k3=k3)
+        else:
+            channels = simulate_faulted(*arguments, draws, spec.n_steps, margin, DELAY_HALF_WIDTH, c3=c3, k3=k3)
     else:
         seat, body = continuous_recordings(
             road_amplitudes(classes, spec.n_waves),
@@ -82,12 +116,14 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
             wave_numbers(spec.n_waves) * spec.speed,
             road_id,
             masses,
-            spec.n_steps,
+            spec.n_steps + margin,
             spec.dt,
             spec.car,
             c3=c3,
             k3=k3,
         )
+        if draws is not None:
+            seat, body = faulted(seat, body, draws, spec.dt, margin, spec.n_steps)
         rel = relative_states(seat, body, spec.dt, spec.measurement)
         channels = tuple(x.astype(np.float32) for x in (seat, body, *rel))
     return SimulatedDataset(
@@ -100,3 +136,13 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
         road_class=np.repeat(classes, spec.n_masses),
         **dict(zip(CHANNELS, channels)),
     )
+
+
+def faulted(seat: np.ndarray, body: np.ndarray, draws: FaultDraws, dt: float, margin: int, n_steps: int):
+    """The faulty sensors' (seat, body), float64 (n, n_steps), of clean channels simulated ``margin`` steps past
+    n_steps: preceded by ``margin`` samples of rest (the car stands still before t0), faulted, cropped to the
+    recording. What ``simulate_faulted`` does inside its kernel."""
+    if margin:
+        seat, body = (np.pad(x, ((0, 0), (margin, 0))) for x in (seat, body))
+    seat, body = apply_faults(seat, body, draws, dt, DELAY_HALF_WIDTH)
+    return seat[:, margin : margin + n_steps], body[:, margin : margin + n_steps]

@@ -18,12 +18,13 @@ from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, INTEGRATIONS, MEASURE
 from hybrid_sysid.data.splits import Split, split_by_road
 from hybrid_sysid.physics import QuarterCar, stable_dt_limit
 from hybrid_sysid.physics.road import OMEGA_M
+from hybrid_sysid.physics.sensors import SensorFaults
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 4  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording;
 # 4: every class on an equal share of the roads (the split per class), the continuous re-integration's gain corrected
-# DatasetSpec's fields that live outside the config's data section: road.classes and the car group
-OUTSIDE_DATA = {"road_classes", "car"}
+# DatasetSpec's fields that live outside the config's data section: road.classes, the car and sensor groups
+OUTSIDE_DATA = {"road_classes", "car", "sensor"}
 # the samples a band-pass must leave of each window (objective.filter, the least-squares baselines)
 MIN_FILTERED = 10
 SEED_MAX = 2**32 - 1  # numpy's and Lightning's seeds are 32-bit unsigned
@@ -46,6 +47,7 @@ class DatasetSpec:
     seed: int = 0
     car: QuarterCar = field(default_factory=QuarterCar)
     seat_spread: float = 0.0  # C3, K3 of each recording uniform in car.c3 * [1 - s, 1 + s], car.k3 * [1 - s, 1 + s]
+    sensor: SensorFaults = field(default_factory=SensorFaults)  # the recording's sensor faults (docs/faults.md)
 
     def validate(self) -> None:
         """ConfigError naming the field (``car.<constant>`` for the car's), the value and what is allowed, before
@@ -71,8 +73,17 @@ class DatasetSpec:
         if not (isinstance(self.seed, int) and 0 <= self.seed <= SEED_MAX):
             bad("seed", self.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
         for name, value in asdict(self.car).items():
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if name == "seat_hardening":  # 0: the linear seat spring
+                check_number("car.seat_hardening", value, 0, unit="1/m^2")
+            elif not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
                 bad(f"car.{name}", value, "must be finite and > 0")
+        if self.car.seat_hardening and self.measurement not in STEPPED:
+            bad(
+                "car.seat_hardening",
+                self.car.seat_hardening,
+                "0 with data.measurement = continuous: its exact solution is of the linear car (physics.exact)",
+            )
+        self.sensor.validate(self.dt)
         if self.measurement not in STEPPED:  # exact samples of the continuous motion: the road is not sampled
             top = float(OMEGA_M) * self.speed / (2 * math.pi)  # the road's highest frequency at this speed, Hz
             if 0.5 / self.dt < top:
@@ -99,6 +110,10 @@ class DatasetSpec:
         payload["road_classes"] = list(self.road_classes)
         if not self.seat_spread:  # the paper's data keep their key
             payload.pop("seat_spread")
+        if not self.car.seat_hardening:  # so do all data of a linear seat spring
+            payload["car"].pop("seat_hardening")
+        if not self.sensor.active:  # and of ideal sensors
+            payload.pop("sensor")
         payload["simulator_version"] = SIMULATOR_VERSION
         return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
 
@@ -112,10 +127,13 @@ class DatasetSpec:
 
     @classmethod
     def from_config(cls, cfg) -> "DatasetSpec":
-        """The spec of a composed config: its data section's keys of the same names, road.classes, the car."""
+        """The spec of a composed config: its data section's keys of the same names, road.classes, the car, the
+        sensor faults."""
         d = cfg.data
         values = {f.name: d[f.name] for f in fields(cls) if f.name not in OUTSIDE_DATA and f.name in d}
-        return cls(**values, road_classes=tuple(cfg.road.classes), car=QuarterCar(**cfg.get("car", {})))
+        sensor = SensorFaults(**(cfg.get("sensor") or {}))
+        car = QuarterCar(**cfg.get("car", {}))
+        return cls(**values, road_classes=tuple(cfg.road.classes), car=car, sensor=sensor)
 
 
 @dataclass(frozen=True)
@@ -143,6 +161,7 @@ class WindowSettings:
         if not (isinstance(self.window, int) and low <= self.window <= top):
             why = f" ({low} to {high or 'any number of'} steps: what the network reads)" if bounds != (1, None) else ""
             bad("window", self.window, f"must lie in [{low}, n_steps = {top}]{why}")
+        spec.sensor.validate(spec.dt, self.window)  # a skew must stay within the window a network reads
         self.split(spec)
         check_filter_fits(taps, self.window, "taps", "window")
         check_outside_fits(outside_taps, spec.n_steps, self.window)

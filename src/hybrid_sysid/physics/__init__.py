@@ -1,6 +1,7 @@
 """The quarter-car physics in plain numpy (no numba, torch, Lightning or Hydra), usable from a notebook.
 
-The compiled dataset kernel is ``hybrid_sysid.physics.compiled``, imported only by ``hybrid_sysid.data``.
+The compiled dataset kernels are ``hybrid_sysid.physics.compiled`` and ``compiled_sensors`` (the sensor faults of
+``physics.sensors``), imported only by ``hybrid_sysid.data``.
 """
 
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED
@@ -21,18 +22,23 @@ from hybrid_sysid.physics.road import (
     wave_amplitudes,
     wave_numbers,
 )
+from hybrid_sysid.physics.sensors import FaultDraws, SensorFaults, fractional_delay, lowpass
 
 __all__ = [
     "DEFAULT_MEASUREMENT",
     "MEASUREMENTS",
     "ROAD_CLASSES",
     "Coefficients",
+    "FaultDraws",
+    "SensorFaults",
     "STEPPED",
     "QuarterCar",
     "continuous_recordings",
     "expm",
+    "fractional_delay",
     "integrate",
     "integrate_trapezoid",
+    "lowpass",
     "relative_states",
     "road_amplitudes",
     "road_phases",

@@ -34,7 +34,9 @@ CHUNK = 128
 
 
 @numba.njit(fastmath=False)
-def _block(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, vel_out, disp_out, first):
+def simulate_block(
+    roads, road_of, p1s, p2s, dt, coefs, consistent, kappa, seat_out, body_out, vel_out, disp_out, first
+):
     """Recordings first .. first + LANES - 1 (spare lanes past the last recording repeat it, unwritten).
 
     A function of its own: written inline in the prange body, the same loop over lanes compiles to scalar code.
@@ -87,6 +89,7 @@ def _block(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, 
                     dt,
                     coef,
                     consistent,
+                    kappa,
                 )
                 s[0, lane], s[1, lane], s[2, lane], s[3, lane], s[4, lane], s[5, lane] = u, v, w, x, y, z
                 rel_vel = s[6, lane] * dt
@@ -104,12 +107,33 @@ def _block(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, 
 
 
 @numba.njit(parallel=True, fastmath=False)
-def kernel(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, vel_out, disp_out):
+def kernel(roads, road_of, p1s, p2s, dt, coefs, consistent, kappa, seat_out, body_out, vel_out, disp_out):
     """Recording i: road ``roads[road_of[i]]``, parameters ``p1s[i], p2s[i]``, the car's coefficients
-    ``coefs[i]`` (a row of Coefficients: the body row holds C3 and K3, which may differ per recording); blocks of
-    LANES run in parallel."""
+    ``coefs[i]`` (a row of Coefficients: the body row holds C3 and K3, which may differ per recording), the seat
+    spring's hardening ``kappa`` (one for all); blocks of LANES run in parallel."""
     for block in numba.prange((seat_out.shape[0] + LANES - 1) // LANES):
-        _block(roads, road_of, p1s, p2s, dt, coefs, consistent, seat_out, body_out, vel_out, disp_out, block * LANES)
+        simulate_block(
+            roads, road_of, p1s, p2s, dt, coefs, consistent, kappa, seat_out, body_out, vel_out, disp_out, block * LANES
+        )
+
+
+def car_arguments(road_of, m3, dt: float, car: QuarterCar, measurement: str, c3=None, k3=None) -> tuple:
+    """The kernels' arguments after the roads, for recording i on road ``road_of[i]`` with mass ``m3[i]``:
+    road_of, p1s, p2s, dt, the car's coefficients per recording, consistent, kappa."""
+    check_choice("measurement", measurement, STEPPED)  # continuous recordings come from physics.exact
+    m3 = np.asarray(m3, dtype=np.float64)
+    car = seat_car(car, len(m3), c3, k3)
+    p1, p2 = (np.broadcast_to(p, m3.shape) for p in car.parameters(m3))
+    coefs = np.ascontiguousarray(np.stack(np.broadcast_arrays(*car.coefficients(), p1), axis=1)[:, :-1])
+    return (
+        np.asarray(road_of, dtype=np.int64),
+        np.ascontiguousarray(p1),
+        np.ascontiguousarray(p2),
+        float(dt),
+        coefs,
+        measurement == "consistent",
+        float(car.seat_hardening),
+    )
 
 
 def simulate_recordings(
@@ -132,10 +156,8 @@ def simulate_recordings(
     float32 or all float64.
     """
     roads = np.ascontiguousarray(roads, dtype=np.float64)
-    m3 = np.asarray(m3, dtype=np.float64)
-    car = seat_car(car, len(m3), c3, k3)
-    p1, p2 = (np.broadcast_to(p, m3.shape) for p in car.parameters(m3))
-    n, n_steps = len(p1), roads.shape[1]
+    arguments = car_arguments(road_of, m3, dt, car, measurement, c3, k3)
+    n, n_steps = len(arguments[1]), roads.shape[1]
     if out is None:
         out = tuple(np.empty((n, n_steps), dtype=np.float32) for _ in range(4))
     out = tuple(out)
@@ -151,16 +173,5 @@ def simulate_recordings(
             [(a.dtype.name, a.shape) for a in out],
             f"four C-contiguous float32 or float64 arrays of one dtype, shape ({n}, {n_steps})",
         )
-    check_choice("measurement", measurement, STEPPED)  # continuous recordings come from physics.exact
-    coefs = np.ascontiguousarray(np.stack(np.broadcast_arrays(*car.coefficients(), p1), axis=1)[:, :-1])
-    kernel(
-        roads,
-        np.asarray(road_of, dtype=np.int64),
-        np.ascontiguousarray(p1),
-        np.ascontiguousarray(p2),
-        float(dt),
-        coefs,
-        measurement == "consistent",
-        *out,
-    )
+    kernel(roads, *arguments, *out)
     return out

@@ -19,6 +19,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from hybrid_sysid.core.checks import bad
 from hybrid_sysid.physics.quarter_car import QuarterCar, seat_car
 
 CHUNK = 256  # recordings per block: bounds the (recordings, waves, 6, 6) solve and the (recordings, steps) output
@@ -60,6 +61,8 @@ def continuous_recordings(
     frequencies Omega_i = w_i v (rad/s). c3, k3: per-recording seat constants in place of the car's.
     Returns two float64 arrays (n_recordings, n_steps).
     """
+    if car.seat_hardening:  # superposing the sines' responses needs a linear car
+        bad("car.seat_hardening", car.seat_hardening, "0 here: the exact solution is that of the linear car")
     m3 = np.asarray(m3, dtype=np.float64)
     road_of = np.asarray(road_of, dtype=np.int64)
     n = len(m3)

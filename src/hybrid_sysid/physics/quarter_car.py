@@ -1,4 +1,11 @@
-"""The quarter-car model (eq. 7-10) and its semi-implicit Euler step (eq. 11) with the recorded accelerations."""
+"""The quarter-car model (eq. 7-10) and its semi-implicit Euler step (eq. 11) with the recorded accelerations.
+
+Beyond the paper, the seat spring may harden (``seat_hardening`` kappa, 1/m^2): its force is K3 (d + kappa d^3),
+d = z - y the seat-minus-body displacement, on the seat and, opposite, on the body. p2 = K3 / m3 stays the
+small-amplitude stiffness, so a fit of the linear seat equation to such data reads a p2 too large. The
+linear system (``system_matrix``, the stability limit, the exact solution of physics.exact) is that small-amplitude
+car.
+"""
 
 from __future__ import annotations
 
@@ -50,6 +57,7 @@ class QuarterCar:
     k3: float = 98935.0
     c2: float = 4741.0
     c3: float = 615.0
+    seat_hardening: float = 0.0  # kappa, 1/m^2: the seat spring's force K3 (d + kappa d^3); 0 is the linear spring
 
     def parameters(self, m3):
         """The unknowns (p1, p2) = (C3 / m3, K3 / m3); works on scalars and arrays alike."""
@@ -59,7 +67,8 @@ class QuarterCar:
         return self.c3 / m3, self.k3 / m3
 
     def describe(self) -> str:
-        return ", ".join(f"{k}={getattr(self, k):g}" for k in ("m1", "m2", "k1", "k2", "k3", "c2", "c3"))
+        names = ("m1", "m2", "k1", "k2", "k3", "c2", "c3") + (("seat_hardening",) if self.seat_hardening else ())
+        return ", ".join(f"{k}={getattr(self, k):g}" for k in names)
 
     def coefficients(self) -> Coefficients:
         m1, m2 = self.m1, self.m2
@@ -78,7 +87,8 @@ class QuarterCar:
         )
 
     def system_matrix(self, m3: float) -> np.ndarray:
-        """A of eq. 10 for the state (z', y', x', z, y, x); the road enters as f = (0, 0, K1 r / m1, 0, 0, 0)."""
+        """A of eq. 10 for the state (z', y', x', z, y, x); the road enters as f = (0, 0, K1 r / m1, 0, 0, 0).
+        With a hardening seat spring, the car linearised at rest (its small-amplitude motion)."""
         c = self.coefficients()
         p1, p2 = self.parameters(m3)
         return np.array(
@@ -93,7 +103,7 @@ class QuarterCar:
         )
 
 
-def step(u, v, w, x, y, z, r, p1, p2, dt, c: Coefficients, consistent: bool):
+def step(u, v, w, x, y, z, r, p1, p2, dt, c: Coefficients, consistent: bool, kappa: float = 0.0):
     """One step of eq. 11 from step k to k + 1, and the two accelerations recorded for step k.
 
     Velocities u, v, w (wheel, body, seat) are updated in that order, each with the newest values, then the
@@ -101,19 +111,32 @@ def step(u, v, w, x, y, z, r, p1, p2, dt, c: Coefficients, consistent: bool):
     and is compiled as it stands for the dataset kernel (physics.compiled).
     Recorded (seat z'', body y''): with ``consistent`` the accelerations the step applied,
     (w_{k+1} - w_k) / dt and (v_{k+1} - v_k) / dt; otherwise eq. 12 from the states at step k.
+    ``kappa`` (a scalar, 1/m^2): the seat spring's hardening, which adds K3 kappa (z - y)^3 to its force. At 0
+    the linear step runs as it always has, operation for operation, so its results stay bit for bit.
     Returns (u, v, w, x, y, z) at step k + 1, then seat and body.
     """
     acc_u = c.uu * u + c.uv * v + c.uy * y + c.ux * x + c.ur * r
     u1 = u + dt * acc_u
-    acc_v = c.vw * w + c.vv * v + c.vu * u1 + c.vz * z + c.vy * y + c.vx * x
-    v1 = v + dt * acc_v
-    acc_w = -p1 * (w - v1) - p2 * (z - y)
+    if kappa == 0.0:
+        acc_v = c.vw * w + c.vv * v + c.vu * u1 + c.vz * z + c.vy * y + c.vx * x
+        v1 = v + dt * acc_v
+        acc_w = -p1 * (w - v1) - p2 * (z - y)
+        d = cube = 0.0  # unused: typed alike in both branches for numba
+    else:
+        d = z - y
+        cube = kappa * (d * d * d)  # the spring's force is K3 (d + cube); products round alike in numpy and numba
+        acc_v = c.vw * w + c.vv * v + c.vu * u1 + c.vz * z + c.vy * y + c.vx * x + c.vz * cube
+        v1 = v + dt * acc_v
+        acc_w = -p1 * (w - v1) - p2 * (d + cube)
     w1 = w + dt * acc_w
     if consistent:
         seat, body = acc_w, acc_v
-    else:
+    elif kappa == 0.0:
         seat = -p1 * (w - v) - p2 * (z - y)
         body = c.vw * (w - v) + c.vu * (u - v) + c.vz * (z - y) + c.vx * (x - y)
+    else:
+        seat = -p1 * (w - v) - p2 * (d + cube)
+        body = c.vw * (w - v) + c.vu * (u - v) + c.vz * (d + cube) + c.vx * (x - y)
     return u1, v1, w1, x + dt * u1, y + dt * v1, z + dt * w1, seat, body
 
 
@@ -145,7 +168,7 @@ def stable_dt_limit(
     and, with ``seat_spread`` s, C3 and K3 anywhere in car.c3 * [1 - s, 1 + s] and car.k3 * [1 - s, 1 + s].
 
     The lightest seat is the stiffest mode; every corner of the range is checked. Found by bisection on the exact
-    step map.
+    step map. A hardening seat spring is stiffer at amplitude: the limit is that of its small-amplitude motion.
     """
     ends = (1.0 - seat_spread, 1.0 + seat_spread) if seat_spread else (1.0,)
     cars = [replace(car, c3=car.c3 * a, k3=car.k3 * b) for a in ends for b in ends]
@@ -205,7 +228,9 @@ def simulate(
     for k in range(n_steps):
         if states is not None:
             states[:, k] = u, v, w, x, y, z
-        u, v, w, x, y, z, seat[k], body[k] = step(u, v, w, x, y, z, road[..., k], p1, p2, dt, coef, consistent)
+        u, v, w, x, y, z, seat[k], body[k] = step(
+            u, v, w, x, y, z, road[..., k], p1, p2, dt, coef, consistent, car.seat_hardening
+        )
     seat, body = np.moveaxis(seat, 0, -1), np.moveaxis(body, 0, -1)
     if states is None:
         return seat, body
