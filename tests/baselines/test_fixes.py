@@ -58,3 +58,35 @@ def test_the_baseline_estimates_a_recording_with_its_fix_and_refuses_a_fix_it_ca
         LeastSquaresFit(span="series", filter="bandpass", dt=DT, fix="gain")
     with pytest.raises(ConfigError, match="fix"):
         LeastSquaresFit(span="window", filter="bandpass", dt=DT, fix="drift")
+
+
+def test_the_skew_fix_recovers_p_that_a_body_sensor_offset_biases(recordings):
+    from hybrid_sysid.baselines.fixes import fit_skew
+    from hybrid_sysid.physics.sensors import fractional_delay
+
+    seat, body, truth = recordings
+    fir = bandpass_taps(4.0, 20.0, 151, DT)
+    late = fractional_delay(body, np.array([1.6, -1.3, 0.7]))  # 8, -6.5 and 3.5 ms of offset, recording-long
+    plain = fit_windows(windows(seat), windows(late), DT, "consistent", fir).p
+    fixed = fit_skew(windows(seat), windows(late), DT, "consistent", fir, skew_max=0.02)
+    assert np.abs(plain / truth - 1).max() > 0.02
+    # the grid of 21 offsets over +-20 ms is 2 ms apart; the parabola's vertex lands within a fraction of that
+    assert np.abs(fixed / truth - 1).max() < 2e-3
+
+
+def test_the_hardening_fix_recovers_the_small_amplitude_stiffness():
+    from hybrid_sysid.baselines.fixes import fit_hardening
+    from hybrid_sysid.physics import relative_states
+
+    m3 = np.array([60.0, 180.0])
+    car = QuarterCar(seat_hardening=35000.0)
+    road = road_profiles(["E", "E"], N, DT, 15.0, rng=7)  # the roughest roads: the largest strokes
+    seat, body = simulate(road, m3, DT, car=car, measurement="consistent")
+    rel_vel, rel_disp = relative_states(seat, body, DT, "consistent")
+    truth = np.stack(car.parameters(m3), axis=1)
+    fir = bandpass_taps(4.0, 20.0, 151, DT)
+    plain = fit_windows(windows(seat), windows(body), DT, "consistent", fir).p
+    fixed = fit_hardening(*(windows(x) for x in (seat, rel_vel, rel_disp)), fir)
+    assert (plain[:, 1] / truth[:, 1] - 1).min() > 0.02  # a stiffer spring than K3: p2 read too high
+    # the cube of the window's detrended displacement stands in for the true stroke's: close, not exact
+    assert np.abs(fixed / truth - 1).max() < 0.25 * np.abs(plain / truth - 1).max()

@@ -19,7 +19,7 @@ from hybrid_sysid.training.run import evaluate_checkpoint, train
 
 TINY = ["data=tiny", "trainer=debug"]
 # the paper's car (sec. 2.2) and the two shifted cars of experiment=transfer
-PAPER = dict(m1=145.0, m2=2160.0, k1=40000.0, k2=149171.0, k3=98935.0, c2=4741.0, c3=615.0)
+PAPER = dict(m1=145.0, m2=2160.0, k1=40000.0, k2=149171.0, k3=98935.0, c2=4741.0, c3=615.0, seat_hardening=0.0)
 
 
 def save_config(cfg, run_dir: Path):
@@ -251,7 +251,7 @@ def test_a_chain_composes_an_objective_as_hydra_does(make_cfg, objective):
     # hybrid_bandpass, hybrid_eiv and label_free build on other presets through their defaults lists
     from hybrid_sysid.experiments.transfer import variant
 
-    cfg = make_cfg("experiment=field", "data=tiny")
+    cfg = make_cfg("experiment=field", "data=tiny", "data.n_steps=900")  # cross_segment leaves a segment
     mine, hydras = variant(cfg, objective).objective, make_cfg("data=tiny", f"objective={objective}").objective
     assert OmegaConf.to_container(mine) == OmegaConf.to_container(hydras)  # interpolations unresolved
 
@@ -259,9 +259,9 @@ def test_a_chain_composes_an_objective_as_hydra_does(make_cfg, objective):
 def test_the_field_plan(make_cfg, tmp_path):
     import hydra.utils
 
-    from hybrid_sysid.experiments.transfer import plan
+    from hybrid_sysid.experiments.transfer import _reads_labels, plan
 
-    cfg = make_cfg("experiment=field", "data=tiny")
+    cfg = make_cfg("experiment=field", "data=tiny", "data.n_steps=900")  # cross_segment leaves a segment
     rows = rows_of(plan(cfg, tmp_path))
     assert list(rows) == [
         ("paper", "1 labelled, paper's car"),
@@ -270,6 +270,8 @@ def test_the_field_plan(make_cfg, tmp_path):
         ("field", "2 + hybrid_bandpass adaptation"),
         ("field", "2 + label_free adaptation"),
         ("field", "3 label_free from scratch"),
+        ("field", "3 label_free from scratch, anchored"),
+        ("field", "3 cross_segment from scratch, anchored"),
         ("field", "4 labelled oracle"),
         ("field", "5 ls_bandpass (no network)"),
     ]
@@ -285,6 +287,10 @@ def test_the_field_plan(make_cfg, tmp_path):
     scratch = rows[("field", "3 label_free from scratch")]
     assert scratch[2].name == "scratch_label_free" and scratch[1].objective.target == "least_squares"
     assert scratch[1].init_from is None and scratch[1].trainer.max_steps == cfg.trainer.max_steps
+    for objective in ("label_free", "cross_segment"):  # model=anchored from scratch, each label-free
+        _, sub, where, _ = rows[("field", f"3 {objective} from scratch, anchored")]
+        assert where.name == f"anchored_{objective}" and sub.init_from is None
+        assert sub.model.net._target_.endswith("AnchoredCNN") and not _reads_labels(cfg, objective)
     _, base, where, _ = rows[("field", "5 ls_bandpass (no network)")]
     assert where == tmp_path / "field" / "baseline_ls_bandpass" and base.task == "train"
     assert base.baseline == make_cfg("data=tiny", "baseline=ls_bandpass").baseline
@@ -336,7 +342,7 @@ def test_the_field_plan(make_cfg, tmp_path):
 def test_bad_transfer_settings_are_one_line_before_any_work(make_cfg, tmp_path, change, match):
     from hybrid_sysid.experiments.transfer import plan
 
-    cfg = make_cfg("experiment=field", "data=tiny")
+    cfg = make_cfg("experiment=field", "data=tiny", "data.n_steps=900")  # cross_segment leaves a segment
     for key, value in change.items():
         OmegaConf.update(cfg, key, value, merge=True, force_add=True)
     with pytest.raises(ConfigError, match=match) as refused:
@@ -348,6 +354,8 @@ def test_bad_transfer_settings_are_one_line_before_any_work(make_cfg, tmp_path, 
         OmegaConf.update(cfg, "transfer.adapt_objectives", [], merge=False)
         assert [r[3][1] for r in plan(cfg, tmp_path / "job")][2:] == [
             "row=3 label_free from scratch",
+            "row=3 label_free from scratch, anchored",
+            "row=3 cross_segment from scratch, anchored",
             "row=4 labelled oracle",
             "row=5 ls_bandpass (no network)",
         ]

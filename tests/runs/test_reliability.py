@@ -110,6 +110,22 @@ def test_resume_accepts_other_curve_levels_and_a_config_saved_before_them(tmp_pa
         check_resume(RunDir(run), make_cfg(*TINY, "noise.eval_std=[0.0]"))
 
 
+def test_resume_accepts_a_config_saved_before_the_faults_and_the_noise_range(tmp_path, make_cfg):
+    """A run saved before sensor=, car.seat_hardening and noise.train_std_max existed ran what their defaults run:
+    it resumes; the same keys at another value are another run."""
+    from omegaconf import OmegaConf
+
+    run = saved_run(tmp_path, make_cfg, *TINY)
+    path = run / ".hydra" / "config.yaml"
+    saved = OmegaConf.load(path)
+    for node, key in ((saved, "sensor"), (saved.car, "seat_hardening"), (saved.noise, "train_std_max")):
+        del node[key]
+    OmegaConf.save(saved, path)
+    check_resume(RunDir(run), make_cfg(*TINY))
+    with pytest.raises(ConfigError, match="sensor.skew_max"):
+        check_resume(RunDir(run), make_cfg(*TINY, "sensor=skewed"))
+
+
 def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, caplog):
     run = saved_run(tmp_path, make_cfg, *TINY)
     (run / ".hydra" / "config.yaml").write_text("data: {n_roads: [")  # truncated

@@ -203,7 +203,9 @@ def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, li
         where = job_dir / name / _subdir("scratch", scratch)
         runs.append(("train", variant(goal, scratch), where, tag + [f"row={scratch_row(scratch)}"], None))
         for objective in t.get("anchored_objectives") or []:
-            anchored = variant(goal, objective, model=composed("model", "anchored", "transfer.anchored_objectives"))
+            model = composed("model", "anchored", "transfer.anchored_objectives")
+            anchored = variant(goal, objective, model__net=model.net, model__batch_size=model.batch_size)
+            OmegaConf.update(anchored, "model.optim", model.optim, merge=True)  # a structured node: merged, not set
             where = job_dir / name / f"anchored_{objective}"
             runs.append(("train", anchored, where, tag + [f"row={anchored_row(objective)}"], None))
         runs.append(("train", variant(goal, "labelled"), job_dir / name / "oracle", tag + [f"row={ORACLE}"], None))

@@ -17,6 +17,17 @@ log = logging.getLogger("hybrid_sysid")
 # frees every key under it: where a run's files go, conf/paths); which noise levels the learning curves are taken
 # at changes only which curve rows are recorded
 RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths.", "noise.curve_std"}
+# keys added after a run may have been saved, at the value that does what that run did: a saved config without
+# them and one with this value are the same run (a value other than this one is another run)
+ADDED = {
+    "noise.train_std_max": None,
+    "car.seat_hardening": 0.0,
+    "sensor.gain_spread": 0.0,
+    "sensor.skew_max": 0.0,
+    "sensor.lowpass_hz": None,
+    "sensor.lowpass_range_hz": None,
+    "transfer.anchored_objectives": [],
+}
 
 
 def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
@@ -94,6 +105,6 @@ def _resume_free(key: str) -> bool:
 
 def _value(flat: dict, key: str):
     """A flattened config's value at ``key``; an empty mapping counts as unset (a run saved before a group such as
-    callbacks existed lacks the key that now holds {})."""
+    callbacks existed lacks the key that now holds {}), and so does a key of ADDED at its value."""
     value = flat.get(key, "(unset)")
-    return "(unset)" if value == {} else value
+    return "(unset)" if value == {} or (key in ADDED and value == ADDED[key]) else value
