@@ -15,39 +15,22 @@ import time
 
 import numpy as np
 import torch
-from hydra import compose, initialize_config_dir
-
-from hybrid_sysid.config import CONF_DIR
-from hybrid_sysid.training.build import build_datamodule, build_model
+from filtered_objective_step import (  # the same plain training loop, from the script beside this one
+    interleaved,
+    stepper,
+)
 
 MODELS = ("fast_cnn", "anchored")
 
 
 def parts(model_name, train_std, overrides):
-    with initialize_config_dir(config_dir=CONF_DIR, version_base=None):
-        cfg = compose(
-            "config",
-            overrides=[f"model={model_name}", "data.seat_spread=0.3", f"noise.train_std={train_std}", *overrides],
-        )
-    torch.manual_seed(0)
-    dm = build_datamodule(cfg)
-    dm.setup("fit")
-    model = build_model(cfg)
-    opt = torch.optim.AdamW(model.parameters(), lr=1e-3)
-    batches = iter(dm.train_dataloader())
-
-    def step():
-        batch = next(batches)
-        loss = model.objective(model(batch["signals"]), batch)
-        opt.zero_grad()
-        loss.backward()
-        opt.step()
+    step = stepper("labelled", train_std, [f"model={model_name}", "data.seat_spread=0.3", *overrides])
 
     def evaluate(k):
-        model.eval()
+        step.model.eval()
         with torch.no_grad():
-            model.predict_split(dm, "test", 0.01, windows=k)
-        model.train()
+            step.model.predict_split(step.dm, "test", 0.01, windows=k)
+        step.model.train()
 
     return step, evaluate
 
@@ -60,13 +43,7 @@ def main():
     args, overrides = ap.parse_known_args()
     torch.set_num_threads(1)
     built = {m: parts(m, args.train_std, overrides) for m in MODELS}
-    times = {m: [] for m in MODELS}
-    for i in range(args.steps + 10):
-        for m in MODELS:
-            t0 = time.perf_counter()
-            built[m][0]()
-            if i >= 10:  # warm-up
-                times[m].append(time.perf_counter() - t0)
+    times = interleaved({m: built[m][0] for m in MODELS}, args.steps)
     ratio = np.array(times["anchored"]) / np.array(times["fast_cnn"])
     print(f"{args.steps} interleaved training steps, noise.train_std={args.train_std} {' '.join(overrides)}")
     for m in MODELS:

@@ -23,13 +23,16 @@ def tiny_run(tmp_path_factory, tiny_cache):
     deviation on recordings simulated like its data, against 32% for a constant guess (200 steps: 18%, too close
     to half of it): enough to tell right input from wrong. Trained once per test
     run (its data from the shared cache, conftest.py's tiny_cache); a test that changes it works on a copy."""
+    return trained_run(tmp_path_factory.getbasetemp() / "tiny_estimator_run", [*TINY, f"data.cache_dir={tiny_cache}"])
+
+
+def trained_run(run_dir, overrides):
+    """A run trained in this process from the config ``overrides`` compose, saved as Hydra would save it."""
     from hydra import compose, initialize_config_dir
 
     from hybrid_sysid.config import CONF_DIR
     from hybrid_sysid.training.run import train
 
-    run_dir = tmp_path_factory.getbasetemp() / "tiny_estimator_run"
-    overrides = [*TINY, f"data.cache_dir={tiny_cache}"]
     with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
         cfg = compose(config_name="config", overrides=overrides)
     train(cfg, run_dir, overrides)

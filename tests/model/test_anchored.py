@@ -14,7 +14,7 @@ from hybrid_sysid.model.anchored import AnchoredCNN
 from hybrid_sysid.physics import relative_states, road_profiles, simulate
 from hybrid_sysid.physics.filters import bandpass_taps
 
-from helpers.estimator_run import predict
+from helpers.estimator_run import predict, trained_run
 
 DT, W = 0.005, 500
 P_MIN, P_MAX = [2.0, 300.0], [17.0, 2600.0]
@@ -97,10 +97,6 @@ def test_bad_values_are_one_line_errors_naming_the_key():
 @pytest.fixture(scope="module")
 def anchored_run(tmp_path_factory, tiny_cache):
     """An anchored network trained 40 steps on data=tiny (noisy training windows), saved as Hydra would."""
-    from hydra import compose, initialize_config_dir
-
-    from hybrid_sysid.config import CONF_DIR
-    from hybrid_sysid.training.run import train
 
     run_dir = tmp_path_factory.mktemp("anchored") / "run"
     overrides = [
@@ -112,12 +108,7 @@ def anchored_run(tmp_path_factory, tiny_cache):
         "noise.train_std=0.01",
         f"data.cache_dir={tiny_cache}",
     ]
-    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-        cfg = compose(config_name="config", overrides=overrides)
-    train(cfg, run_dir, overrides)
-    (run_dir / ".hydra").mkdir(exist_ok=True)
-    OmegaConf.save(cfg, run_dir / ".hydra" / "config.yaml")
-    return run_dir
+    return trained_run(run_dir, overrides)
 
 
 def test_a_trained_run_is_served_like_any_run(anchored_run, tmp_path, capsys):
