@@ -379,6 +379,7 @@ def test_the_field_chain_runs_end_to_end_and_a_rerun_skips_it(make_cfg, tmp_path
             "field/adapted",
             "field/adapted_hybrid_bandpass",
             "field/adapted_label_free",
+            "field/anchored_label_free",
             "field/baseline_ls_bandpass",
             "field/oracle",
             "field/scratch_label_free",
@@ -393,6 +394,7 @@ def test_the_field_chain_runs_end_to_end_and_a_rerun_skips_it(make_cfg, tmp_path
         assert records[f"field/{name}"]["init_from"] == str(job / "source")
         assert records[f"field/{name}"]["monitor"] == "val/loss" and records[f"field/{name}"]["steps"] == 20
     assert records["field/scratch_label_free"]["monitor"] == "val/loss"
+    assert records["field/anchored_label_free"]["monitor"] == "val/loss"  # debug=fast keeps the label_free one
     assert (
         records["field/baseline_ls_bandpass"]["steps"] == 0 and records["field/baseline_ls_bandpass"]["monitor"] is None
     )
@@ -410,6 +412,7 @@ def test_the_field_chain_runs_end_to_end_and_a_rerun_skips_it(make_cfg, tmp_path
         "2 + hybrid_bandpass adaptation",
         "2 + label_free adaptation",
         "3 label_free from scratch",
+        "3 label_free from scratch, anchored",
         "4 labelled oracle",
         "5 ls_bandpass (no network)",
     ]
