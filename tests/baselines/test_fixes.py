@@ -74,6 +74,17 @@ def test_the_skew_fix_recovers_p_that_a_body_sensor_offset_biases(recordings):
     assert np.abs(fixed / truth - 1).max() < 2e-3
 
 
+def test_the_skew_search_delays_equal_the_faults_own_interpolator():
+    from hybrid_sysid.baselines.fixes import delayed_copies
+    from hybrid_sysid.physics.sensors import fractional_delay
+
+    x = np.random.default_rng(3).standard_normal((4, 300)).cumsum(axis=1)  # a drifting edge, unlike the middle
+    delays = np.array([-4.6, -2.0, -0.3, 0.0, 0.5, 3.7])
+    for delay, got in zip(delays, delayed_copies(x, delays, half_width=16), strict=True):
+        want = fractional_delay(x, np.full(len(x), delay), half_width=16)
+        assert np.abs(got - want).max() < 1e-12 * np.abs(want).max()
+
+
 def test_the_hardening_fix_recovers_the_small_amplitude_stiffness():
     from hybrid_sysid.baselines.fixes import fit_hardening
     from hybrid_sysid.physics import relative_states
