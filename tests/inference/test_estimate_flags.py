@@ -83,7 +83,7 @@ def test_a_seat_mass_far_outside_the_trained_range_is_flagged(est):
     well inside the range (90 to 130 kg) are not flagged."""
     table, lines = quiet_predict(est, *heavy(1000, 5, est.dt), est.dt)
     assert flagged(table, "range").all(), table[["m3_from_p1", "flag"]]
-    assert any("5 of 5 recordings" in x and "outside the trained range" in x for x in lines), lines
+    assert any("5 of 5 recordings" in x and "may lie beyond the range" in x for x in lines), lines
     road = road_profiles("ABCDEABCDE", 400, est.dt, 15.0, rng=4)
     seat, body = simulate(road, np.linspace(90, 130, 10), est.dt, measurement="consistent")
     table, lines = quiet_predict(est, seat, body, est.dt)
@@ -122,6 +122,7 @@ def test_a_run_with_a_large_or_unknown_test_error_flags_every_estimate(est):
         assert (flagged(table, "run_error") == flag).all(), (rec, table.flag)
         got = [x for x in lines if "flag run_error" in x]
         assert len(got) == int(flag) and (not flag or message in got[0]), (rec, lines)
+        assert all(x.startswith("about the run, not these recordings: ") for x in got), got
 
 
 @pytest.fixture(scope="module")

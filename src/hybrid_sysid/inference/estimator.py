@@ -144,7 +144,7 @@ class Estimator:
         lines = []
         outside = self.trained.outside(p)
         if outside.any():
-            lines.append(F.range_warning(outside, names, self.trained, self.baseline is None))
+            lines.append(F.range_warning(outside, names, self.trained))
         channels = self.reference.outside(features, k)
         if channels.any():
             lines.append(F.channels_warning(channels, names, self.reference))

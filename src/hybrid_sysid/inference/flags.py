@@ -1,9 +1,10 @@
 """When not to trust an estimate: the flags ``Estimator.predict`` adds to its table (docs/predict.md, "Flags").
 
-range     an estimate more than RANGE_RTOL outside the range of p the run was trained on (its data spec: (C3, K3)
-          (1 -/+ s) / [m3_max, m3_min]), or within BOUND_RTOL of the network's output bound, where the network
-          saturates: a seat mass outside the trained range comes out near the range's edge, not where it is. A
-          least-squares baseline has no bound; outside the range it was never tested.
+range     a network's estimate beyond the range of p the run was trained on (its data spec: (C3, K3) (1 -/+ s) /
+          [m3_max, m3_min]) or within EDGE of its edge, in p1 or p2 (EDGE: a fraction of the range's width in log
+          p, the same in log m3), or within BOUND_RTOL of the network's output bound: a seat mass outside the
+          trained range comes out at or near the range's edge, not where it is. A least-squares baseline does not
+          saturate: its estimate is flagged only more than RANGE_RTOL outside the range, where it was never tested.
 channels  the recording's channel powers unlike those of recordings simulated from the run's own data spec: the
           seat-to-body power ratio around the seat resonance (the seat amplifies the body's motion there, so
           swapped channels invert it) beyond their range by more than a factor RATIO_FACTOR in power, or the
@@ -24,10 +25,14 @@ from omegaconf import DictConfig
 from hybrid_sysid.config.resolvers import p_prior
 from hybrid_sysid.data.dataset import generate_dataset
 from hybrid_sysid.data.spec import DatasetSpec
+from hybrid_sysid.physics import QuarterCar
 
 RANGE, CHANNELS, RUN_ERROR = "range", "channels", "run_error"
 BOUND_RTOL = 0.02  # an estimate within 2% of a network's output bound counts as saturated
-RANGE_RTOL = 0.02  # one more than 2% beyond the trained range is outside it (an exact fit at the edge is not)
+# a network's estimate within EDGE of the trained range's edge (a fraction of the range's width in log p) may be a
+# seat mass beyond it read at the edge; 0.02 flags 3-5% of in-range test recordings (benchmarks/range_flag.py)
+EDGE = 0.02
+RANGE_RTOL = 0.02  # a baseline's fit more than 2% beyond the trained range is outside it (an exact fit is not)
 RUN_ERROR_LIMIT = 0.10  # clean test mean relative deviation (either parameter) above which every estimate is flagged
 # how far (a factor in power) a recording's seat-to-body power ratio and body power may lie beyond the range of the
 # simulated reference recordings: the ratio is a property of the car (road class and realisation change it little),
@@ -44,17 +49,31 @@ SHOW = 5  # recording names a warning lists
 
 @dataclass(frozen=True)
 class TrainedRange:
-    """The range of p = (p1, p2) the run's data span, and the network's output bounds (None: unbounded)."""
+    """The range of p = (p1, p2) the run's data span, whether a network estimates (else a least-squares
+    baseline), the network's output bounds (None: unbounded) and the car's (C3, K3), which turn p into m3."""
 
     p_min: np.ndarray
     p_max: np.ndarray
     m3: tuple[float, float]  # data.m3_min, data.m3_max
     bound_lo: np.ndarray | None = None
     bound_hi: np.ndarray | None = None
+    network: bool = True
+    c3k3: tuple[float, float] = (615.0, 98935.0)
+
+    def edges(self) -> tuple[np.ndarray, np.ndarray]:
+        """(lo, hi): a network's estimate at or below lo or at or above hi (each (2,), p1 and p2) is flagged: EDGE
+        of the range's log width inside its edges."""
+        step = (self.p_max / self.p_min) ** EDGE
+        return self.p_min * step, self.p_max / step
 
     def outside(self, p: np.ndarray) -> np.ndarray:
-        """(n,) bool: any of p1, p2 (rows of p, (n, 2)) beyond the trained range or at the output bound."""
-        out = (p < self.p_min * (1 - RANGE_RTOL)).any(axis=1) | (p > self.p_max * (1 + RANGE_RTOL)).any(axis=1)
+        """(n,) bool: any of p1, p2 (rows of p, (n, 2)) near the trained range's edge or beyond (a baseline: more
+        than RANGE_RTOL beyond), or at a network's output bound."""
+        if self.network:
+            lo, hi = self.edges()
+            out = (p <= lo).any(axis=1) | (p >= hi).any(axis=1)
+        else:
+            out = (p < self.p_min * (1 - RANGE_RTOL)).any(axis=1) | (p > self.p_max * (1 + RANGE_RTOL)).any(axis=1)
         if self.bound_lo is not None:
             out |= (p <= self.bound_lo * (1 + BOUND_RTOL)).any(axis=1)
         if self.bound_hi is not None:
@@ -75,7 +94,9 @@ def trained_range(cfg: DictConfig, net=None) -> TrainedRange:
     lo, hi = (np.array(p_prior(which, _root_=cfg)) for which in ("min", "max"))
     bounds = net.output_bounds() if net is not None else None
     bound_lo, bound_hi = bounds if bounds is not None else (None, None)
-    return TrainedRange(lo, hi, (float(cfg.data.m3_min), float(cfg.data.m3_max)), bound_lo, bound_hi)
+    car = QuarterCar(**cfg.get("car", {}))
+    m3 = (float(cfg.data.m3_min), float(cfg.data.m3_max))
+    return TrainedRange(lo, hi, m3, bound_lo, bound_hi, net is not None, (float(car.c3), float(car.k3)))
 
 
 def resonance_band(p2_min: float, p2_max: float) -> tuple[float, float]:
@@ -170,16 +191,22 @@ def names_of(names: list, mask: np.ndarray) -> str:
     return shown + (f", ... ({len(flagged) - SHOW} more)" if len(flagged) > SHOW else "")
 
 
-def range_warning(mask: np.ndarray, names: list, trained: TrainedRange, network: bool = True) -> str:
-    why = (
-        "or at the network's output bound, where it saturates: the true value may lie further out"
-        if network
-        else "where the run was never tested (a least-squares fit does not saturate, but a negative or far-off "
-        "value means the seat equation does not fit the recording)"
-    )
+def range_warning(mask: np.ndarray, names: list, trained: TrainedRange) -> str:
+    head = f"{int(mask.sum())} of {len(mask)} recordings ({names_of(names, mask)}) have an estimate"
+    if not trained.network:
+        return (
+            f"{head} more than {RANGE_RTOL:.0%} outside the trained range ({trained.describe()}) where the run was "
+            "never tested (a least-squares fit does not saturate, but a negative or far-off value means the seat "
+            f"equation does not fit the recording) (flag {RANGE})"
+        )
+    (lo1, lo2), (hi1, hi2) = trained.edges()
+    m3_lo, m3_hi = trained.c3k3[0] / hi1, trained.c3k3[0] / lo1  # from p1; from p2 the same without seat spread
     return (
-        f"{int(mask.sum())} of {len(mask)} recordings ({names_of(names, mask)}) have an estimate more than "
-        f"{RANGE_RTOL:.0%} outside the trained range ({trained.describe()}) {why} (flag {RANGE})"
+        f"{head} at the edge of the trained range or beyond it (m3 from p1 <= {m3_lo:.4g} or >= {m3_hi:.4g} kg; "
+        f"p1 >= {hi1:.4g} or <= {lo1:.4g} 1/s, p2 >= {hi2:.4g} or <= {lo2:.4g} 1/s^2: within {EDGE:.0%} of the "
+        f"range's log width of its edge; trained on {trained.describe()}): a network reads a "
+        f"seat mass outside its trained range at or near the edge, so the true value may lie beyond the range "
+        f"(flag {RANGE})"
     )
 
 
@@ -197,11 +224,12 @@ def channels_warning(mask: np.ndarray, names: list, reference: ChannelReference)
 def run_error_warning(error: float | None, k: int | None, values: dict, n: int) -> str:
     if error is None:
         return (
-            f"the run's own test error is unknown (no readable metrics.json with clean test results): its "
-            f"estimates are unchecked (flag {RUN_ERROR} on all {n} recordings)"
+            f"about the run, not these recordings: the run's own test error is unknown (no readable metrics.json "
+            f"with clean test results), so its estimates are unchecked (flag {RUN_ERROR} on all {n} recordings)"
         )
     each = ", ".join(f"{p} {v:.1%}" for p, v in sorted(values.items()))
     return (
-        f"the run's own clean test error is {error:.1%} mean relative deviation (K = {k}: {each}), above "
-        f"{RUN_ERROR_LIMIT:.0%}: expect errors of that size on every recording (flag {RUN_ERROR} on all {n})"
+        f"about the run, not these recordings: the run's own clean test error is {error:.1%} mean relative "
+        f"deviation (K = {k}: {each}) on its simulated test roads, above {RUN_ERROR_LIMIT:.0%}: expect errors of "
+        f"that size on every recording it estimates (flag {RUN_ERROR} on all {n})"
     )
