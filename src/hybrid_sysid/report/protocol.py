@@ -48,6 +48,10 @@ def _describe(cfg: dict, choices: dict) -> dict[str, str | None]:
     ):
         if g(key) is not None:
             d[label] = _fmt(g(key)) + {"speed": " m/s", "window": " steps"}.get(label, "")
+    if isinstance(g("noise.train_std_max"), (int, float)):  # a range: each training window draws its own std
+        d["training noise std"] = (
+            f"{_fmt(g('noise.train_std'))}-{_fmt(g('noise.train_std_max'))} (log-uniform per training window)"
+        )
     if g("data.m3_min") is not None:
         d["seat masses"] = f"m3 uniform on the integers {g('data.m3_min')}-{g('data.m3_max')} kg"
     return d

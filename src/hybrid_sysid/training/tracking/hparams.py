@@ -11,7 +11,14 @@ from hybrid_sysid.training.tracking.naming import Naming, objective_name, overri
 
 # the hyperparameters of the table, beside the config groups chosen and the swept keys
 HPARAM_GROUPS = ("objective", "baseline", "model", "data", "noise")
-HPARAM_KEYS = ("seed", "model.optim.lr", "model.batch_size", "noise.train_std", "trainer.max_steps")
+HPARAM_KEYS = (
+    "seed",
+    "model.optim.lr",
+    "model.batch_size",
+    "noise.train_std",
+    "noise.train_std_max",  # the top of a log-uniform range of training noise (null: train_std alone)
+    "trainer.max_steps",
+)
 
 
 def hparams_values(cfg: DictConfig, naming: Naming) -> dict[str, Any]:
