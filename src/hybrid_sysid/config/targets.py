@@ -1,10 +1,13 @@
 """The classes a config may name by ``_target_``: this package's networks, objectives and baselines (any class of
-hybrid_sysid.model or hybrid_sysid.baselines that provides what its key asks: model/base.py), and a list of
+hybrid_sysid.model or hybrid_sysid.baselines that provides what its key asks: model/base.py), the classes that
+installed packages declare as plugins (entry points: config/plugins.py, docs/extending.md), and a list of
 Lightning's loggers and callbacks. Nothing else is ever imported or called from a config.
 
 A run directory is data a user may have received from someone else (its .hydra/config.yaml is read by
 hybrid-sysid-eval, hybrid-sysid-predict, load_estimator, init_from and resume=), so a ``_target_`` is checked by
-name before anything outside this package is imported: any other name is a one-line ConfigError naming the key.
+name before anything outside this package is imported: a name neither this package's nor declared by an installed
+package's entry point is a one-line ConfigError naming the key. Installing a package is the act of trust; a run
+made with a plugin records its package (``plugin_fields``), and opened where it is missing says what to install.
 Arguments are plain values; a nested ``_target_`` (an argument that would build another object) is refused the
 same way. A new network or objective of this package is one module of hybrid_sysid.model and one YAML file.
 """
@@ -17,6 +20,7 @@ import inspect
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config import plugins
 from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.core.options import CALLBACKS, LOGGERS
 from hybrid_sysid.model.base import Baseline, Network, Objective, lacks
@@ -40,19 +44,24 @@ def _family(key: str) -> str:
     return next((f for f in FAMILIES if key.startswith(f + ".")), key)
 
 
-def check_target(target, key: str) -> None:
+def check_target(target, key: str, recorded: dict | None = None) -> None:
     """ConfigError unless ``target`` may be named at ``key``: a class path in this package's own (OWN; the module
-    must exist) or one of LIBRARY's names. Imports nothing outside this package."""
+    must exist), one an installed package declares in the entry point group of ``key`` (config/plugins.py), or one
+    of LIBRARY's names. Imports nothing outside this package. ``recorded``: what a run's record says of the plugin
+    class at ``key``, so the refusal of one not installed names its package."""
     family = _family(key)
     if family in OWN:
         package = OWN[family][0]
+        own = isinstance(target, str) and target.startswith(package + ".")
+        if not own and plugins.declared(target, family) is not None:
+            return
         parts = target.split(".") if isinstance(target, str) else []
         module = ".".join(parts[:-1])
-        if (
-            not target.startswith(package + ".")
-            or not all(p.isidentifier() and not p.startswith("_") for p in parts)
-            or importlib.util.find_spec(module) is None
-        ):
+        if not own:
+            why = plugins.missing(target, family, recorded)
+            bad(f"{key}._target_", target, f"a class of {package} or one an installed package declares; {why}")
+        named = all(p.isidentifier() and not p.startswith("_") for p in parts)
+        if not named or importlib.util.find_spec(module) is None:
             bad(f"{key}._target_", target, f"a class of {package} (a config names only this package's classes)")
         return
     allowed = LIBRARY[family]
@@ -66,21 +75,63 @@ def check_target(target, key: str) -> None:
 
 def known_class(target, key: str) -> type:
     """The class a ``_target_`` at ``key`` names, imported once check_target lets it, and holding every member of
-    what its key asks (OWN: model/base.py); ConfigError otherwise."""
+    what its key asks (OWN: model/base.py); ConfigError otherwise. A plugin's module is imported here, and an
+    exception it raises is one line naming its entry point."""
     check_target(target, key)
     family = _family(key)
     if family not in OWN:
         module, name = LIBRARY[family][target]
         return getattr(importlib.import_module(module), name)
     package, interface = OWN[family]
-    module, name = target.rsplit(".", 1)
-    cls = getattr(importlib.import_module(module), name, None)
-    if not (inspect.isclass(cls) and cls.__module__.startswith(package + ".")):
-        bad(f"{key}._target_", target, f"a class of {package} (there is none of that name)")
+    plugin = None if target.startswith(package + ".") else plugins.declared(target, family)
+    if plugin is not None:
+        cls = plugins.load(plugin, key)
+        source = f"{interface.__name__} of hybrid_sysid.model.base; the {plugins.describe(plugin)}"
+        if not inspect.isclass(cls):
+            bad(f"{key}._target_", target, f"a class ({source} names a {type(cls).__name__})")
+    else:
+        module, name = target.rsplit(".", 1)
+        cls = getattr(importlib.import_module(module), name, None)
+        if not (inspect.isclass(cls) and cls.__module__.startswith(package + ".")):
+            bad(f"{key}._target_", target, f"a class of {package} (there is none of that name)")
+        source = f"{interface.__name__}, model/base.py"
     missing = lacks(cls, interface)
     if missing:
-        bad(f"{key}._target_", target, f"a class with {', '.join(missing)} ({interface.__name__}, model/base.py)")
+        bad(f"{key}._target_", target, f"a class with {', '.join(missing)} ({source})")
     return cls
+
+
+def built_classes(cfg: DictConfig) -> dict[str, str]:
+    """Config key -> the ``_target_`` a run of ``cfg`` builds: its baseline's, else its network's and objective's
+    (a baseline run keeps the unused default objective)."""
+    baseline = OmegaConf.select(cfg, "baseline", default=None, throw_on_resolution_failure=False)
+    keys = ("baseline",) if baseline is not None else ("model.net", "objective")
+    found = {}
+    for key in keys:
+        try:
+            target = OmegaConf.select(cfg, f"{key}._target_", default=None, throw_on_resolution_failure=False)
+        except Exception:  # noqa: BLE001 - a malformed node: the builder names it when it reads it
+            continue
+        if isinstance(target, str):
+            found[key] = target
+    return found
+
+
+def plugin_fields(cfg: DictConfig) -> dict:
+    """The record's ``plugins`` (config key -> the plugin class's entry point, package and version) when the run
+    builds a class of another installed package; {} otherwise."""
+    made = {k: plugins.record_of(t, k) for k, t in built_classes(cfg).items() if not t.startswith(OWN[k][0] + ".")}
+    made = {k: v for k, v in made.items() if v is not None}
+    return {"plugins": made} if made else {}
+
+
+def check_saved(cfg: DictConfig, record) -> None:
+    """A run's saved config names only classes that may be named here: a plugin class whose package is not
+    installed is a ConfigError naming the package its record says the run was made with."""
+    recorded = record.get("plugins") if isinstance(record, dict) else None
+    recorded = recorded if isinstance(recorded, dict) else {}
+    for key, target in built_classes(cfg).items():
+        check_target(target, key, recorded.get(key))
 
 
 def arguments(node, key: str) -> tuple[type, dict]:

@@ -116,7 +116,11 @@ class RunDir:
         return record if is_completed(record) else None
 
     def saved_config(self, key: str = "run") -> DictConfig:
-        """The composed config the run saved; ConfigError naming ``key`` when it has none or it is damaged."""
+        """The composed config the run saved; ConfigError naming ``key`` when it has none or it is damaged, and
+        naming the class when it builds one neither this package's nor an installed plugin's (a run made with a
+        plugin not installed here: the package its record names)."""
+        from hybrid_sysid.config.targets import check_saved  # the config layer, loaded by readers of configs only
+
         if not self.config_file.is_file():
             bad(key, Shown(str(self.path)), f"it has no {layout.CONFIG} (a run directory written by hybrid-sysid)")
         try:
@@ -125,6 +129,11 @@ class RunDir:
             self._damaged(key, layout.CONFIG, exc)
         if not isinstance(cfg, DictConfig):
             self._damaged(key, layout.CONFIG, "not a mapping")
+        try:
+            record = self.record(key)
+        except ConfigError:  # damaged: the refusal of a missing plugin then names no package
+            record = None
+        check_saved(cfg, record)
         return cfg
 
     def saved_values(self) -> dict:

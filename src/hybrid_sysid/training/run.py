@@ -22,8 +22,10 @@ import torch
 from omegaconf import DictConfig
 
 from hybrid_sysid.config import validate
+from hybrid_sysid.config.targets import plugin_fields
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import Shown, bad
+from hybrid_sysid.core.ranks import is_global_zero
 from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.runs.provenance import provenance_fields
 from hybrid_sysid.runs.resume import resume_checkpoint
@@ -120,6 +122,7 @@ class Job:
             threads=threads,
             by_road_class=classes,
             **provenance_fields(),  # the code and the processor that made the numbers, read once per process
+            **plugin_fields(cfg),  # the plugin classes it was made with: opened without them, it names their package
             **outcome.record_fields(),
         )
         stop.check()  # the last safe point before the run is final
@@ -155,7 +158,7 @@ def train(
     if done is not None:
         return done
     L.seed_everything(cfg.seed, workers=True)  # 0 included
-    if cfg.get("logger"):  # experiment trackers, as many as the config names
+    if cfg.get("logger") and is_global_zero():  # experiment trackers (with DDP, global rank 0's alone)
         job.loggers = build_loggers(cfg, job.run.path, experiment, run_name, overrides)
         for logger in job.loggers:
             logger.log_hyperparams(hyperparameters(cfg))
