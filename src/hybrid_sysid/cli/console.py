@@ -13,6 +13,7 @@ conf/hydra/job_logging/quiet.yaml) keeps every message.
 from __future__ import annotations
 
 import logging
+import os
 import warnings
 from contextlib import contextmanager
 
@@ -21,6 +22,7 @@ LIGHTNING = ("lightning", "lightning.pytorch", "lightning.fabric")
 # dataset not yet cached, and a re-run sweep's job that is not run again
 SWEEP_INFO = (("hybrid_sysid.data.cache", "simulating"), ("hybrid_sysid", "already completed"))
 _job = {"running": False}
+SRUN_ADVERT = "The `srun` command is available on your system but is not used"  # lightning.fabric's SLURMEnvironment
 
 
 class ConsoleFilter(logging.Filter):
@@ -60,8 +62,12 @@ def quiet_libraries() -> None:
     """Lightning's messages through the root logger's handlers alone (Hydra's console and the run's log file),
     without its advert for litlogger (logged at every Trainer's creation), and without a deprecation warning of
     torch about Lightning's own code, which no user can act on. Lightning is imported here (the job's work
-    imports it next anyway) because its import adds the console handlers removed here. Without handlers on the
-    root logger (plain Python, not a command), nothing changes."""
+    imports it next anyway) because its import adds the console handlers removed here. Outside a SLURM job,
+    Lightning's hint that srun is on PATH but not used (a cluster's login node) is dropped: it speaks of SLURM jobs
+    and this process is none. Without handlers on the root logger (plain Python, not a command), nothing else
+    changes."""
+    if "SLURM_JOB_ID" not in os.environ:
+        warnings.filterwarnings("ignore", message=SRUN_ADVERT)
     if not logging.getLogger().handlers:
         return
     import lightning  # noqa: F401

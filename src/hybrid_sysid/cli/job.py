@@ -89,11 +89,13 @@ def run_job(
                     raise Interrupted(stop.requested()) from None
         except Interrupted as exc:
             name = signal.Signals(exc.signum).name
-            result = run.record_end(overrides, seed, "interrupted", f"interrupted by {name}")
-            log.error("%s: interrupted by %s; %s", run_dir, name, again)
+            requeued = stop.requeues(exc.signum)  # SLURM's time limit: the job runs again and resumes by itself
+            why = f"interrupted by {name}" + (" (SLURM's time limit; the job is requeued)" if requeued else "")
+            result = run.record_end(overrides, seed, "interrupted", why)
+            log.error("%s: %s; %s", run_dir, why, "it resumes from its last checkpoint" if requeued else again)
             if not multirun:
                 sys.exit(128 + exc.signum)
-            if sweep_dir is not None and sweep_dir.is_dir():  # jobs not yet started skip, here and in other workers
+            if not requeued and sweep_dir is not None and sweep_dir.is_dir():  # jobs not yet started skip
                 (sweep_dir / STOP_MARKER).touch()
             return result
         except Exception as exc:  # record the failure where the sweep summary will look for it
@@ -129,6 +131,7 @@ def task_config(cfg: DictConfig) -> DictConfig:
 
 
 SEARCH_SWEEPER = "hydra_plugins.hybrid_sysid_search.StudySweeper"  # conf/hydra/sweeper/study.yaml
+SLURM_LAUNCHER = "hydra_plugins.hybrid_sysid_slurm.SlurmLauncher"  # conf/launcher/slurm.yaml
 
 
 class Preflight(Callback):
@@ -154,6 +157,10 @@ class Preflight(Callback):
                 from hybrid_sysid.experiments.search import study_settings
 
                 study_settings(task_config(config), config.hydra.sweeper, config.hydra.overrides.task)
+            if str(config.hydra.launcher.get("_target_", "")) == SLURM_LAUNCHER:  # the request against the partition
+                from hybrid_sysid.cli.slurm import check_request
+
+                check_request(config.hydra.launcher)
             make_dir(sweep_dir, "hydra.sweep.dir")
             locks.hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
         except ConfigError as exc:

@@ -1,7 +1,10 @@
 """The config's resolvers and its registration with Hydra: ``${p_prior:...}`` derives the prior of p from the
-car and the data, ``${first_set:...}`` picks the run directory, ``${fault_fix:}`` the least-squares fix of a fault."""
+car and the data, ``${first_set:...}`` picks the run directory, ``${fault_fix:}`` the least-squares fix of a fault,
+``${slurm_mem_gb:...}`` the memory a SLURM job asks."""
 
 from __future__ import annotations
+
+import math
 
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
@@ -39,11 +42,24 @@ def fault_fix(*, _root_: DictConfig) -> str:
     return "gain" if float(sensor.get("gain_spread", 0.0) or 0.0) > 0 else "none"
 
 
+TORCH_GB = 2  # what a job holds beside its dataset: torch, Lightning, the network and its batches (under 1 GB)
+
+
+def slurm_mem_gb(n_roads: int, n_masses: int, n_steps: int) -> int:
+    """``${slurm_mem_gb:${data.n_roads},${data.n_masses},${data.n_steps}}`` in conf/launcher/slurm.yaml: the GB
+    one job asks SLURM for, the dataset's size (config.memory.dataset_bytes: n_roads x n_masses x n_steps x 4
+    channels x 8 bytes, and the road profiles) plus TORCH_GB, rounded up to a whole GB."""
+    from hybrid_sysid.config.memory import dataset_bytes
+
+    return math.ceil(dataset_bytes(int(n_roads), int(n_masses), int(n_steps)) / 2**30 + TORCH_GB)
+
+
 def register() -> None:
-    """The schema for Hydra and two resolvers: ``p_prior`` (above), and ``first_set`` for the run directory
-    (hydra.run.dir is ``resume`` when given, else a new time-stamped directory)."""
+    """The schema for Hydra and the resolvers: ``p_prior``, ``fault_fix`` and ``slurm_mem_gb`` (above), and
+    ``first_set`` for the run directory (hydra.run.dir is ``resume`` when given, else a new time-stamped one)."""
     ConfigStore.instance().store(name="schema", node=Config)
     ConfigStore.instance().store(name="eval_schema", node=EvalConfig)
     OmegaConf.register_new_resolver("first_set", lambda *xs: next((x for x in xs if x), None), replace=True)
     OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)
     OmegaConf.register_new_resolver("fault_fix", fault_fix, replace=True)
+    OmegaConf.register_new_resolver("slurm_mem_gb", slurm_mem_gb, replace=True)

@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import signal
 
-_signal: dict[str, int | None] = {"requested": None, "received": None}
+_signal: dict[str, int | None] = {"requested": None, "received": None, "requeue": None}
 
 
 class Interrupted(BaseException):
@@ -54,6 +54,17 @@ def requested() -> int | None:
 def received() -> int | None:
     """The first termination signal this process received, None if none came."""
     return _signal["received"]
+
+
+def requeue_on(signum: int | None) -> None:
+    """The signal after which the job runs again by itself (SLURM's time limit, through submitit:
+    hybrid_sysid.cli.slurm): an interruption by it is recorded, but it does not stop the sweep."""
+    _signal["requeue"] = signum
+
+
+def requeues(signum: int) -> bool:
+    """Whether an interruption by ``signum`` is followed by the job's requeue (``requeue_on``)."""
+    return signum is not None and signum == _signal["requeue"]
 
 
 def check() -> None:
