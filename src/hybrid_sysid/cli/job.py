@@ -27,7 +27,7 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 from hybrid_sysid.cli.console import job_running, quiet_libraries
 from hybrid_sysid.cli.orphans import exit_with_parent, job_in_progress
 from hybrid_sysid.cli.process import PROCESS, SIGNALS, fail, interruptible, stop_sweep
-from hybrid_sysid.core import stop
+from hybrid_sysid.core import ranks, stop
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.runs import locks
@@ -70,6 +70,10 @@ def run_job(
             if not multirun:
                 sys.exit(128 + received)
             return result
+        if not ranks.is_global_zero():  # a DDP rank above 0: global rank 0 records the run, this one writes nothing
+            with interruptible(), job_running():
+                quiet_libraries()
+                return work()
         mine = multirun and not locks.holds(run_dir)  # a single job's preflight holds it already
         if mine:
             try:
@@ -147,6 +151,8 @@ class Preflight(Callback):
             make_dir(run_dir, "hydra.run.dir")
             locks.hold(run_dir, "hydra.run.dir")  # before Hydra writes .hydra/ there: one writer per directory
             RunDir(run_dir).previous_record(overrides)  # a completed run of other overrides
+            if not ranks.is_global_zero():
+                writes_nothing(config)
         except (ConfigError, ValueError) as exc:
             fail(str(exc))
 
@@ -178,6 +184,16 @@ class Preflight(Callback):
                 f"hydra.sweep.dir = {sweep_dir} holds a sweep of other overrides ({' '.join(_sweep_of(was)[0])}); "
                 "re-run it with the same ones, or choose another hydra.sweep.dir"
             )
+
+
+def writes_nothing(config: DictConfig) -> None:
+    """A DDP rank above global rank 0 shares rank 0's run directory (on a shared file system, from another node
+    too): Hydra writes neither its .hydra/ nor the rank's log file there. Its messages still reach its console."""
+    with read_write(config), open_dict(config):
+        config.hydra.output_subdir = None
+        logging_cfg = config.hydra.job_logging
+        logging_cfg.handlers.pop("file", None)
+        logging_cfg.root.handlers = [h for h in logging_cfg.root.get("handlers", []) if h != "file"]
 
 
 def is_search(config: DictConfig) -> bool:

@@ -99,7 +99,8 @@ class TrainerConfig:
     eval_every_n_steps: int = 200
     curve_every_n_steps: Optional[int] = None  # learning-curve points; null: at every validation
     accelerator: str = "cpu"
-    devices: Any = 1
+    devices: Any = 1  # processes (DDP ranks) a node
+    num_nodes: int = 1  # nodes of a DDP training: num_nodes x devices ranks in all
     threads: Optional[int] = None
     deterministic: bool = True
     monitor: str = "auto"

@@ -22,6 +22,7 @@ from hybrid_sysid.config.targets import arguments, build, check_target
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.install import install_command
 from hybrid_sysid.core.options import MONITORS, PROFILERS, TASKS
+from hybrid_sysid.core.ranks import check_world
 from hybrid_sysid.data.spec import SEED_MAX, BatchSettings, DatasetSpec, WindowSettings, check_eval_windows
 from hybrid_sysid.model.optim import OptimSettings
 from hybrid_sysid.physics import QuarterCar
@@ -119,6 +120,7 @@ def _check_trainer(t: DictConfig) -> None:
     if t.threads is not None and t.threads < 1:
         bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
     check_choice("trainer.monitor", t.monitor, MONITORS)
+    check_world(t.get("num_nodes", 1), t.devices)  # against the processes the launcher started (core.ranks)
     if not (isinstance(t.progress_bar, bool) or t.progress_bar == "auto"):
         bad("trainer.progress_bar", t.progress_bar, "true, false or auto (a bar when stdout is a terminal)")
     if t.get("profiler") is not None:

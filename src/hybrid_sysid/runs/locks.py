@@ -3,10 +3,10 @@ writes there and released when that process releases it or ends, however it ends
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from hybrid_sysid.core.checks import Shown, bad
+from hybrid_sysid.core.ranks import is_global_zero
 from hybrid_sysid.runs.layout import WRITER_LOCK
 
 _held: dict[str, object] = {}  # this process's locks, by directory: a lock is the process's, as its files are
@@ -32,9 +32,9 @@ def hold_for_writing(path: Path, key: str):
 
 def hold(path: Path, key: str) -> None:
     """This process's lock of a run or sweep directory, kept until the process ends (or ``release``). A DDP rank
-    above 0 (Lightning starts it with the same command, LOCAL_RANK set) shares its rank 0's directory, which rank
-    0 holds."""
-    if os.environ.get("LOCAL_RANK", "0") != "0":
+    above the global rank 0 (on this node or another, its directory perhaps the same on a shared file system)
+    shares rank 0's directory, which rank 0 alone holds and writes (hybrid_sysid.core.ranks)."""
+    if not is_global_zero():
         return
     if str(path) not in _held:
         _held[str(path)] = hold_for_writing(path, key)

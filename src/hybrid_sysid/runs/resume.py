@@ -27,6 +27,7 @@ ADDED = {
     "sensor.lowpass_hz": None,
     "sensor.lowpass_range_hz": None,
     "transfer.anchored_objectives": [],
+    "trainer.num_nodes": 1,
 }
 
 

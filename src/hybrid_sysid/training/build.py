@@ -90,6 +90,7 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         check_val_every_n_epoch=None,
         accelerator=t.accelerator,
         devices=t.devices,
+        num_nodes=t.get("num_nodes", 1),
         deterministic=t.deterministic,
         logger=list(loggers) or False,
         callbacks=callbacks,

@@ -1,0 +1,54 @@
+"""Which process of a training of several processes (DDP, on one or several nodes) this one is, read before the
+trainer exists from the variables its launcher sets, as Lightning's cluster environments read them: torchrun's
+RANK and WORLD_SIZE, SLURM's SLURM_PROCID and SLURM_NTASKS (srun), Lightning's own NODE_RANK and LOCAL_RANK (the
+processes Lightning starts, or a user's on each node). Only the global rank 0 writes into the run directory, so
+every node may share it; a local rank 0 on a node above 0 is not global rank 0."""
+
+from __future__ import annotations
+
+import os
+
+# every variable that names a rank: the global rank is 0 only if each one set is 0 (torchrun sets RANK, GROUP_RANK
+# and LOCAL_RANK; srun SLURM_PROCID; Lightning's environment NODE_RANK and LOCAL_RANK, its global rank being
+# NODE_RANK x devices + LOCAL_RANK)
+RANK_VARIABLES = ("RANK", "SLURM_PROCID", "NODE_RANK", "GROUP_RANK", "LOCAL_RANK")
+
+
+def is_global_zero() -> bool:
+    """Whether this process is the global rank 0 (or the only process): the one that locks and writes the run."""
+    return all(os.environ.get(name, "0").strip() in ("", "0") for name in RANK_VARIABLES)
+
+
+def launched_world() -> tuple[int, str] | None:
+    """The number of processes the launcher started and the variable that says so: WORLD_SIZE (torchrun, or the
+    ranks Lightning starts), else SLURM_NTASKS in a batch job (Lightning's SLURM environment, which an interactive
+    job named bash or interactive does not use); None when nothing says (one process, or Lightning starts them)."""
+    if os.environ.get("WORLD_SIZE", "").strip().isdigit():
+        return int(os.environ["WORLD_SIZE"]), "WORLD_SIZE"
+    tasks = os.environ.get("SLURM_NTASKS", "").strip()
+    if tasks.isdigit() and os.environ.get("SLURM_JOB_NAME") not in ("bash", "interactive"):
+        return int(tasks), "SLURM_NTASKS"
+    return None
+
+
+def check_world(num_nodes, devices) -> None:
+    """trainer.num_nodes x trainer.devices is the world size the launcher started, and a node's rank is below
+    trainer.num_nodes; else ConfigError naming trainer.num_nodes (the processes would wait for each other in the
+    rendezvous until its timeout). Devices not given as a count (auto, a list) are Lightning's to check."""
+    from hybrid_sysid.core.checks import bad, check_int
+
+    nodes = check_int("trainer.num_nodes", num_nodes, 1)
+    node = os.environ.get("NODE_RANK", os.environ.get("GROUP_RANK", "")).strip()
+    if node.isdigit() and int(node) >= nodes:
+        bad("trainer.num_nodes", nodes, f"more than this node's rank, NODE_RANK = {node} (one rank per node, from 0)")
+    world = launched_world()
+    if world is None or isinstance(devices, bool) or not isinstance(devices, int):
+        return
+    size, source = world
+    if nodes * devices != size:
+        bad(
+            "trainer.num_nodes",
+            nodes,
+            f"trainer.num_nodes x trainer.devices (here {nodes} x {devices}) equal to the {size} processes the "
+            f"launcher started ({source} = {size})",
+        )
