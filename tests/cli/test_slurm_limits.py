@@ -129,3 +129,49 @@ def test_no_srun_hint_outside_a_slurm_job(tmp_path, monkeypatch):
         quiet_libraries()
         L.Trainer(logger=False, enable_progress_bar=False, enable_checkpointing=False)
     assert not any("srun" in str(w.message) for w in after)
+
+
+class FakeJob:
+    """What the sweep's wait reads of a submitit job: its id and the paths of its result and log."""
+
+    def __init__(self, job_id, folder):
+        self.job_id = job_id
+        self.paths = type("Paths", (), {"result_pickle": folder / f"{job_id}_result.pkl", "stderr": folder / "err"})
+
+
+def fake_slurm(monkeypatch, queue_text):
+    """SLURM's commands answering with captured text; scancel recorded, not run."""
+    from hybrid_sysid.cli import slurm
+
+    answers = {"squeue": queue_text, "scontrol": OPEN, "sinfo": NODES}
+    monkeypatch.setattr(slurm.slurm_limits, "run", lambda *cmd: answers[cmd[0]])
+    cancelled = []
+    monkeypatch.setattr(slurm.subprocess, "run", lambda cmd, **kw: cancelled.append(cmd))
+    return slurm, cancelled
+
+
+def test_an_array_pending_for_ever_is_cancelled_with_one_line(monkeypatch, tmp_path, capsys):
+    # the issue's case: 4 CPUs and 16 GB a job queued on a smaller node, Reason=PartitionConfig
+    slurm, cancelled = fake_slurm(monkeypatch, "12_0|PENDING|PartitionConfig\n12_1|PENDING|PartitionConfig\n")
+    monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)  # as a user runs it: the line alone
+    launcher = slurm.SlurmLauncher(cpus_per_task=4, mem_gb=16, timeout_min=240, partition="debug")
+    jobs = [FakeJob("12_0", tmp_path), FakeJob("12_1", tmp_path)]
+    with pytest.raises(SystemExit):
+        launcher._poll(jobs, "12", [None, None], {}, [[], []], 0)
+    assert cancelled == [["scancel", "12"]]
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 1 and "SLURM job array 12 cannot start (Reason=PartitionConfig)" in lines[0]
+    assert "a job asks 4 CPUs and 16 GB a node, 240 min, 1 node, but partition debug allows 2 CPUs" in lines[0]
+
+
+def test_a_job_that_ended_without_a_result_stops_the_wait(monkeypatch, tmp_path):
+    slurm, cancelled = fake_slurm(monkeypatch, "12_0|FAILED|NonZeroExitCode\n12_1|RUNNING|None\n")
+    monkeypatch.setattr(slurm, "GRACE", -1.0)  # its result file would have shown by now
+    launcher = slurm.SlurmLauncher(cpus_per_task=1, mem_gb=3, timeout_min=60)
+    jobs = [FakeJob(j, tmp_path) for j in ("12_0", "12_1", "12_2")]  # 12_2: no longer listed at all
+    results = [None, None, None]
+    launcher._poll(jobs, "12", results, {}, [["seed=0"], ["seed=1"], ["seed=2"]], 0)
+    assert results[1] is None and not cancelled  # running: still waited for
+    assert results[0].return_value["status"] == "failed"
+    assert "SLURM job 12_0 ended FAILED without a result" in results[0].return_value["error"]
+    assert "SLURM job 12_2 ended GONE" in results[2].return_value["error"]

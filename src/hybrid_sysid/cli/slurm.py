@@ -29,7 +29,7 @@ from hydra.core.singleton import Singleton
 from hydra.core.utils import JobReturn, JobStatus, filter_overrides
 from hydra_plugins.hydra_submitit_launcher.config import BaseQueueConf
 from hydra_plugins.hydra_submitit_launcher.submitit_launcher import SlurmLauncher as SubmititSlurmLauncher
-from omegaconf import OmegaConf
+from omegaconf import OmegaConf, open_dict
 
 from hybrid_sysid.cli import slurm_limits
 from hybrid_sysid.cli.process import fail
@@ -37,6 +37,7 @@ from hybrid_sysid.cli.progress import count_done, job_line
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.runs.layout import PROGRESS
+from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
 POLL = 5.0  # seconds between two squeue calls; the results' files are looked at every second
@@ -118,11 +119,12 @@ class SlurmLauncher(SubmititSlurmLauncher):
                 _cancel(array, signal.Signals(stop.received()).name)
             if now - last_poll >= POLL and any(r is None for r in results):
                 last_poll = now
-                self._poll(jobs, array, results, ended_at, overrides)
+                self._poll(jobs, array, results, ended_at, overrides, first)
             if cancelled_at is not None and now - cancelled_at > CANCEL_WAIT:
                 for i, job in enumerate(jobs):  # pending when cancelled: nothing of them ran
                     if results[i] is None:
-                        results[i] = _no_result(overrides[i], "interrupted", f"SLURM job {job.job_id} cancelled")
+                        why = f"SLURM job {job.job_id} cancelled before its result"
+                        results[i] = self._without_result(first + i, overrides[i], "interrupted", why)
             for i, ret in enumerate(results):
                 if ret is not None and i not in told:
                     told.add(i)
@@ -131,7 +133,7 @@ class SlurmLauncher(SubmititSlurmLauncher):
                 time.sleep(1.0)
         return results  # type: ignore[return-value]
 
-    def _poll(self, jobs: list, array: str, results: list, ended_at: dict, overrides: list) -> None:
+    def _poll(self, jobs: list, array: str, results: list, ended_at: dict, overrides: list, first: int) -> None:
         try:
             text = slurm_limits.run("squeue", "-h", "-r", "-t", "all", "-j", array, "-o", "%i|%T|%r")
             states = slurm_limits.queue(text)
@@ -153,9 +155,24 @@ class SlurmLauncher(SubmititSlurmLauncher):
                     error = f"SLURM job {job.job_id} ended {state} without a result (its log: {job.paths.stderr})"
                     log.error("job %d: %s", i, error)
                     cancelled = stop.received() is not None or state.startswith("CANCELLED")
-                    results[i] = _no_result(overrides[i], "interrupted" if cancelled else "failed", error)
+                    status = "interrupted" if cancelled else "failed"
+                    results[i] = self._without_result(first + i, overrides[i], status, error)
             else:
                 ended_at.pop(i, None)  # requeued: running again
+
+    def _without_result(self, num: int, overrides: list, status: str, error: str) -> JobReturn:
+        """A job that ended without a result (killed, out of memory, cancelled while pending): recorded in its run
+        directory, as the job would have, so the sweep's summary lists it."""
+        try:
+            cfg = self.hydra_context.config_loader.load_sweep_config(self.config, list(overrides))
+            with open_dict(cfg.hydra.job):
+                cfg.hydra.job.num = num
+            RunDir(Path(str(cfg.hydra.sweep.dir)) / str(cfg.hydra.sweep.subdir)).record_end(
+                overrides, cfg.get("seed", 0), status, error
+            )
+        except Exception as exc:  # noqa: BLE001 - the sweep's own return still says so
+            log.warning("job %d: its %s record not written: %s: %s", num, status, type(exc).__name__, exc)
+        return _no_result(overrides, status, error)
 
     def _job_line(self, num: int, ret: JobReturn, seconds: float) -> None:
         """The sweep's line for a job that ended (hybrid_sysid.cli.progress); its seconds count from the submission,
