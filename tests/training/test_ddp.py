@@ -2,6 +2,8 @@
 the run is evaluated and recorded once."""
 
 import json
+import os
+import socket
 import subprocess
 import sys
 import textwrap
@@ -13,7 +15,7 @@ import pytest
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, RandomWindows
 
-from helpers.app_process import user_env
+from helpers.app_process import run_app, user_env
 from helpers.started_early import started_early
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
@@ -94,3 +96,99 @@ def test_two_processes_draw_different_windows_and_write_one_record(ddp_run):
     record = json.loads(records[0].read_text())
     assert record["status"] == "completed" and record["devices"] == 2 and record["steps"] == 12
     assert (proc.stdout + proc.stderr).count("p1 mean rel. dev.") == 1  # one table printed, by rank 0
+
+
+# a rank above 0 lists every file it opens for writing, makes, moves or removes inside the run directory (Python's
+# audit events: every write of Hydra, Lightning's Python side and the project), then runs the recording app
+AUDITED = textwrap.dedent("""
+    import os, sys
+    RUN = os.path.abspath(sys.argv[-1].split("=", 1)[1]) + os.sep
+    if os.environ.get("NODE_RANK", "0") != "0":
+        out = os.open(f"writes{os.environ['NODE_RANK']}.txt", os.O_WRONLY | os.O_CREAT | os.O_APPEND)
+        CHANGES = {"os.mkdir", "os.rename", "os.replace", "os.remove", "os.rmdir", "os.symlink", "os.link"}
+        WRITE = os.O_WRONLY | os.O_RDWR | os.O_CREAT | os.O_APPEND
+        def audit(event, args):
+            if event == "open" and isinstance(args[0], (str, bytes, os.PathLike)):
+                mode, flags = args[1], args[2] or 0
+                writes = any(c in mode for c in "wax+") if isinstance(mode, str) else bool(flags & WRITE)
+            else:
+                writes = event in CHANGES and isinstance(args[0], (str, bytes, os.PathLike))
+            if writes and os.path.abspath(os.fsdecode(args[0])).startswith(RUN):
+                os.write(out, f"{event} {os.fsdecode(args[0])}\\n".encode())
+        sys.addaudithook(audit)
+""")
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+@started_early
+def two_node_run(tmp, env, tiny_cache):
+    """Two nodes of one device each on this machine, as Lightning's environment starts them (each node's process
+    started by hand with MASTER_ADDR, MASTER_PORT, NODE_RANK, WORLD_SIZE and LOCAL_RANK), writing into one run
+    directory as nodes on a shared file system do. Otherwise the command of ddp_run."""
+    script = tmp / "app.py"
+    script.write_text(AUDITED + RECORDING)
+    port = str(free_port())
+    args = ["data=tiny", "trainer=ddp", "trainer.devices=1", "trainer.num_nodes=2", "trainer.max_steps=12"]
+    args += ["trainer.eval_every_n_steps=6", f"data.cache_dir={tiny_cache}", f"hydra.run.dir={tmp / 'run'}"]
+    nodes = []
+    for node in (0, 1):
+        node_env = {"MASTER_ADDR": "127.0.0.1", "MASTER_PORT": port, "WORLD_SIZE": "2", "NODE_RANK": str(node)}
+        node_env["LOCAL_RANK"] = "0"
+        nodes.append(
+            subprocess.Popen(
+                [sys.executable, str(script), *args],
+                cwd=tmp,
+                env={**user_env(env), **node_env},
+                stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT,
+                text=True,
+            )
+        )
+    try:
+        outputs = [p.communicate(timeout=300)[0] for p in nodes]
+    finally:  # a node that waits in the rendezvous for one that ended would wait 30 minutes
+        for p in nodes:
+            p.kill()
+    return [p.returncode for p in nodes], outputs, tmp
+
+
+def results(run_dir):
+    record = json.loads((run_dir / "metrics.json").read_text())
+    keys = ("split", "noise_std", "windows", "parameter")
+    return record, {tuple(r[k] for k in keys): (r["mean_rel_dev"], r["std_rel_dev"]) for r in record["results"]}
+
+
+@pytest.mark.integration
+def test_two_nodes_share_one_run_directory_and_give_the_numbers_of_one_node_with_two_devices(two_node_run, ddp_run):
+    (codes, outputs, tmp), (one_node, one_tmp) = two_node_run, ddp_run
+    assert codes == [0, 0], "\n".join(o[-3000:] for o in outputs)
+    assert not (tmp / "writes1.txt").exists() or (tmp / "writes1.txt").read_text() == ""
+    records = list(tmp.rglob("metrics.json"))
+    assert records == [tmp / "run" / "metrics.json"]
+    assert not list((tmp / "run").glob("*process_1*")) and len(list((tmp / "run").glob("*.log"))) == 1
+    record, two = results(tmp / "run")
+    assert record["status"] == "completed" and record["devices"] == 2 and record["steps"] == 12
+    # the global rank picks the window stream: node 1's one rank draws what rank 1 of one node with two devices does
+    for r in (0, 1):
+        assert (tmp / f"rank{r}.jsonl").read_text() == (one_tmp / f"rank{r}.jsonl").read_text()
+    assert one_node.returncode == 0
+    _, one = results(one_tmp / "run")
+    assert one.keys() == two.keys()
+    # the same ranks, streams and gradient average: equal up to the order of floating-point sums
+    np.testing.assert_allclose([two[k] for k in one], [one[k] for k in one], rtol=1e-6)
+
+
+@pytest.mark.integration
+def test_a_node_count_that_does_not_match_the_world_size_is_one_line_and_writes_nothing(tmp_path, tiny_cache):
+    env = {**os.environ, "WORLD_SIZE": "3", "MASTER_ADDR": "127.0.0.1", "NODE_RANK": "0", "LOCAL_RANK": "0"}
+    args = ["data=tiny", "trainer=ddp", "trainer.num_nodes=1", f"hydra.run.dir={tmp_path / 'run'}"]
+    proc = run_app(tmp_path, *args, f"data.cache_dir={tiny_cache}", env=env)
+    assert proc.returncode == 2, proc.stderr[-2000:]
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1 and "trainer.num_nodes" in lines[0] and "WORLD_SIZE = 3" in lines[0], proc.stderr
+    assert not (tmp_path / "run").exists()

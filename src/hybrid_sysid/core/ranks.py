@@ -49,6 +49,6 @@ def check_world(num_nodes, devices) -> None:
         bad(
             "trainer.num_nodes",
             nodes,
-            f"trainer.num_nodes x trainer.devices (here {nodes} x {devices}) equal to the {size} processes the "
-            f"launcher started ({source} = {size})",
+            f"trainer.num_nodes x trainer.devices must equal the processes the launcher started, {source} = {size} "
+            f"(here {nodes} x {devices} = {nodes * devices})",
         )
