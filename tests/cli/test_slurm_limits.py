@@ -160,7 +160,7 @@ def test_an_array_pending_for_ever_is_cancelled_with_one_line(monkeypatch, tmp_p
         launcher._poll(jobs, "12", [None, None], {}, [[], []], 0)
     assert cancelled == [["scancel", "12"]]
     lines = capsys.readouterr().err.strip().splitlines()
-    assert len(lines) == 1 and "SLURM job array 12 cannot start (Reason=PartitionConfig)" in lines[0]
+    assert len(lines) == 1 and "SLURM job 12 cannot start (Reason=PartitionConfig)" in lines[0]
     assert "a job asks 4 CPUs and 16 GB a node, 240 min, 1 node, but partition debug allows 2 CPUs" in lines[0]
 
 

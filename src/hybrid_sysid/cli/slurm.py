@@ -102,7 +102,12 @@ class SlurmLauncher(SubmititSlurmLauncher):
                 detail = detail.decode(errors="replace")
             fail(f"sbatch refused the sweep's jobs: {' '.join(str(detail).split())}", status=1)
         array = str(jobs[0].job_id).split("_")[0]
-        print(f"SLURM job array {array}: {len(jobs)} jobs submitted; scancel {array} cancels them", flush=True)
+        many = len(jobs) > 1  # submitit sends a single job as a plain job, not as an array
+        print(
+            f"SLURM job{' array' * many} {array}: {len(jobs)} job{'s' * many} submitted; scancel {array} cancels "
+            f"{'them' if many else 'it'}",
+            flush=True,
+        )
         return self._wait(jobs, array, list(job_overrides), initial_job_idx)
 
     def _wait(self, jobs: list, array: str, overrides: list, first: int) -> list[JobReturn]:
@@ -138,12 +143,12 @@ class SlurmLauncher(SubmititSlurmLauncher):
             text = slurm_limits.run("squeue", "-h", "-r", "-t", "all", "-j", array, "-o", "%i|%T|%r")
             states = slurm_limits.queue(text)
         except (subprocess.SubprocessError, OSError) as exc:  # the controller busy or restarting: the next poll
-            log.warning("squeue failed (%s); waiting for SLURM job array %s", exc, array)
+            log.warning("squeue failed (%s); waiting for SLURM job %s", exc, array)
             return
         reason = slurm_limits.never_starts(states)
         if reason:
             _cancel(array, None)
-            fail(f"SLURM job array {array} cannot start (Reason={reason}): {self._request_text()}; cancelled", 1)
+            fail(f"SLURM job {array} cannot start (Reason={reason}): {self._request_text()}; cancelled", 1)
         now = time.time()
         for i, job in enumerate(jobs):
             if results[i] is not None:
@@ -229,13 +234,13 @@ def _cancel(array: str, signal_name: str | None) -> None:
         subprocess.run(["scancel", array], capture_output=True, timeout=60, check=True)
         if signal_name:
             print(
-                f"{signal_name}: SLURM job array {array} cancelled; its running jobs record their interruption",
+                f"{signal_name}: SLURM job {array} cancelled; its running jobs record their interruption",
                 file=sys.stderr,
                 flush=True,
             )
     except (subprocess.SubprocessError, OSError) as exc:
         print(
-            f"SLURM job array {array} left running ({type(exc).__name__}); cancel it with: scancel {array}",
+            f"SLURM job {array} left running ({type(exc).__name__}); cancel it with: scancel {array}",
             file=sys.stderr,
             flush=True,
         )
