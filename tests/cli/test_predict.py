@@ -451,7 +451,7 @@ def test_windows_beyond_the_memory_available_are_refused(tiny_run, est, tmp_path
     float32 copy the network reads. With 800 kB available, 100 windows fit and 101 do not."""
     import hybrid_sysid.inference.memory as estimator
 
-    monkeypatch.setattr(estimator, "available_memory", lambda: 800_000)
+    monkeypatch.setattr(estimator, "tightest_memory", lambda: (800_000, "free memory (MemAvailable)"))
     seat, body, _ = recordings(1, 400, est.dt)
     csv = write_csv(tmp_path / "rec.csv", seat, body, est.dt)
     code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", "windows=101")
@@ -459,7 +459,8 @@ def test_windows_beyond_the_memory_available_are_refused(tiny_run, est, tmp_path
     assert err.splitlines() == [
         f"hybrid-sysid-predict: error: input = {csv}: windows = 101 is not allowed: 1 to 100 for recording 0 (400 "
         f"steps): 101 windows of 2 x 200 steps need {101 * 8000 / 2**30:.3g} GiB of memory (float64, cut and "
-        f"stacked, plus a float32 copy of up to 4096 windows) and {800_000 / 2**30:.3g} GiB is available"
+        f"stacked, plus a float32 copy of up to 4096 windows) and {800_000 / 2**30:.3g} GiB is available (free memory "
+        "(MemAvailable))"
     ]
     code, out, err = predict(capsys, f"run={tiny_run}", f"input={csv}", "windows=100")
     assert code == 0 and len(out.splitlines()) == 2, err

@@ -274,14 +274,15 @@ def test_windows_must_fit_in_the_memory_available(est, monkeypatch):
 
     seat, body, _ = recordings(2, 5300, est.dt)
     available = [800_000]
-    monkeypatch.setattr(estimator, "available_memory", lambda: available[0])
+    free = "free memory (MemAvailable)"
+    monkeypatch.setattr(estimator, "tightest_memory", lambda: None if available[0] is None else (available[0], free))
     assert est.predict(seat[0, :400], body[0, :400], est.dt, windows=100).windows.item() == 100
     tracemalloc.start()
     try:
         with pytest.raises(
             InputError,
             match=r"^windows = 101 is not allowed: 1 to 100 for recording 0 \(400 steps\): 101 windows of 2 x 200 "
-            r"steps need 0.000753 GiB of memory .* and 0.000745 GiB is available$",
+            r"steps need 0.000753 GiB of memory .* and 0.000745 GiB is available \(free memory \(MemAvailable\)\)$",
         ):
             est.predict(seat[0, :400], body[0, :400], est.dt, windows=101)
         assert tracemalloc.get_traced_memory()[1] < 200_000  # the peak: far below the 808000 bytes refused

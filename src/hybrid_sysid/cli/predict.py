@@ -4,9 +4,10 @@
 
 The command parses its key=value arguments, reads the file and prints; the estimates come from
 ``hybrid_sysid.inference.estimator``, the code the Python API runs. Bad input prints one line on stderr naming the
-problem and exits with status 2; Ctrl-C prints one line and exits with status 130. output= never replaces the
-input, a file inside a run directory, or (without overwrite=true) any existing file. Estimates not to trust are
-marked in the column flag, with one warning line per kind on stderr. File formats, output columns and flags:
+problem and exits with status 2 (so does running out of memory); Ctrl-C prints one line and exits with status
+130. output= never replaces the input, a file inside a run directory, or (without overwrite=true) any existing
+file. Estimates not to trust are marked in the column flag, with one warning line per kind on stderr. File
+formats, output columns and flags:
 docs/predict.md.
 """
 
@@ -156,7 +157,7 @@ body accelerations in m/s^2, CSV or .npz) with a trained run's network; prints a
   resample=true       resample recordings sampled at another rate than the run's data.dt
   dt=SECONDS          the sampling interval, when the file does not give it
 
-Exit status: 0 done; 2 bad input (one line on stderr); 130 Ctrl-C. File formats, columns and flags:
+Exit status: 0 done; 2 bad input or out of memory (one line on stderr); 130 Ctrl-C. File formats, columns and flags:
 docs/predict.md.
 
 example:
@@ -174,6 +175,14 @@ def main(argv: list[str] | None = None) -> None:
         run(parse_args(argv))
     except ConfigError as exc:
         print(f"hybrid-sysid-predict: error: {' '.join(str(exc).split())}", file=sys.stderr)
+        sys.exit(2)
+    except MemoryError:  # beyond what the windows' check foresees: the run, the file, the channel reference
+        print(
+            "hybrid-sysid-predict: error: out of memory: the recordings need more than this process may use (free "
+            "memory, its address-space limit, ulimit -v, or its cgroup's); fewer recordings per input file, or a "
+            "smaller windows=",
+            file=sys.stderr,
+        )
         sys.exit(2)
     except KeyboardInterrupt:
         print("hybrid-sysid-predict: interrupted (Ctrl-C)", file=sys.stderr)

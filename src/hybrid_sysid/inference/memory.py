@@ -1,8 +1,9 @@
-"""The memory that estimating K windows of many recordings takes, against what the process may still use."""
+"""The memory that estimating K windows of many recordings takes, against what the process may still use (the
+smallest of its limits: config.memory.memory_limits, the one home of that question)."""
 
 from __future__ import annotations
 
-from hybrid_sysid.config.memory import available_memory
+from hybrid_sysid.config.memory import tightest_memory
 from hybrid_sysid.inference.inputs import InputError
 
 CHUNK = 4096  # windows per forward pass, so long recordings need bounded memory
@@ -22,10 +23,12 @@ def max_windows(available: int, window: int) -> int:
 
 
 def check_window_memory(k: int, names: list, steps: list[int], window: int) -> None:
-    """The windows of every recording, cut and stacked, fit in the memory available (window_bytes)."""
-    need, available = window_bytes(k * len(names), window), available_memory()
-    if available is None or need <= available:
+    """The windows of every recording, cut and stacked, fit in the memory available (window_bytes): the least of
+    free memory, the address-space limit and the cgroup's, so the refusal comes before any allocation fails."""
+    need, tightest = window_bytes(k * len(names), window), tightest_memory()
+    if tightest is None or need <= tightest[0]:
         return
+    available, limit = tightest
     fit = max_windows(available, window) // len(names)
     longest = max(range(len(steps)), key=steps.__getitem__)
     which = (
@@ -39,5 +42,5 @@ def check_window_memory(k: int, names: list, steps: list[int], window: int) -> N
         (f"1 to {fit}" if fit >= 1 else "fewer recordings per call, or more memory")
         + f" for {which}: {k * len(names)} windows of 2 x {window} steps need {need / 2**30:.3g} GiB of memory "
         f"(float64, cut and stacked, plus a float32 copy of up to {CHUNK} windows) and {available / 2**30:.3g} GiB "
-        "is available",
+        f"is available ({limit})",
     )
