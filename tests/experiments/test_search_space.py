@@ -36,6 +36,24 @@ def test_a_good_space_is_the_search_space(make_cfg):
     assert check_search(make_cfg(), GOOD, 3) == search_space(GOOD)
 
 
+@pytest.mark.parametrize(
+    "argument, expected",
+    [
+        ("model.optim.lr=interval(0.01,0.05)", optuna.distributions.FloatDistribution(0.01, 0.05)),
+        ("model.optim.lr=tag(log,interval(0.01,0.05))", optuna.distributions.FloatDistribution(0.01, 0.05, log=True)),
+        ("model.net.channels=8,16", optuna.distributions.CategoricalDistribution([8, 16])),
+    ],
+)
+def test_a_space_on_the_command_line_is_a_dimension_of_the_search(make_cfg, argument, expected):
+    """The documented command-line space (docs/usage.md): Hydra cannot print a sweep back as text, which once
+    broke the preflight (a warning) and then the search (a traceback)."""
+    from hybrid_sysid.experiments.search import study_settings
+
+    settings = {"params": GOOD, "n_trials": 3}
+    s = study_settings(make_cfg(), settings, [argument, "objective=hybrid"])
+    assert s.space[argument.split("=")[0]] == expected and s.fixed == ["objective=hybrid"]
+
+
 @pytest.mark.integration
 @pytest.mark.slow  # the check itself is tested in process above; this one, the preflight's call, from a shell
 def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):

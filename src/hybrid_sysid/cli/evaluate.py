@@ -55,6 +55,9 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
             f"a run whose saved config this version reads ({where}: {type(exc).__name__}; a run saved by another "
             "version of hybrid-sysid, whose keys have changed since)",
         )
+    missing = sorted(OmegaConf.missing_keys(cfg))
+    if missing:  # e.g. a file cut at a line's end: it parses, the sections after the cut are gone
+        bad("run", Shown(str(run_dir)), f"a run whose saved config is complete (no value for {', '.join(missing)})")
     for key in override_keys(overrides):
         top = key.split(".")[0]
         if key == "run" or top == "hydra":
@@ -73,6 +76,18 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
     return cfg
 
 
+def validate_saved(cfg: DictConfig, run_dir: Path) -> None:
+    """Every check of a command line (config.validate) on the config to evaluate; what no check foresaw (a
+    saved section cut short, a value of another type) is a ConfigError naming the run."""
+    try:
+        validate(cfg)
+    except ConfigError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a damaged saved config breaks the checks in any way
+        text = " ".join(str(exc).split())[:300]
+        bad("run", Shown(str(run_dir)), f"a run whose saved config this version reads ({type(exc).__name__}: {text})")
+
+
 class EvalPreflight(Preflight):
     """Preflight (hybrid_sysid.cli.job) that also builds and checks the config to evaluate."""
 
@@ -80,7 +95,7 @@ class EvalPreflight(Preflight):
         if OmegaConf.is_missing(cfg, "run"):
             raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
         evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
-        validate(evaluated)
+        validate_saved(evaluated, Path(str(cfg.run)))
         from hybrid_sysid.training.build import check_weights  # here: a sweep's parent loads no torch
 
         check_weights(evaluated, Path(str(cfg.run)), "run")
@@ -93,7 +108,7 @@ def evaluate(composed: DictConfig, out_dir: Path, overrides: list[str], checked:
     source = Path(composed.run)
     cfg = evaluation_config(source, composed, overrides)
     if not checked:
-        validate(cfg)
+        validate_saved(cfg, source)
     out_dir.mkdir(parents=True, exist_ok=True)
     RunDir(out_dir).write_config(cfg, overrides)
     return evaluate_checkpoint(cfg, source, out_dir, overrides, checked=True)

@@ -18,6 +18,7 @@ import os
 import signal
 import sys
 import threading
+from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable
 
@@ -145,32 +146,34 @@ class Preflight(Callback):
         """The command's checks of a single job's config (without Hydra's section); raise ConfigError."""
 
     def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
-        run_dir, overrides = Path(str(config.hydra.run.dir)), list(config.hydra.overrides.task)
-        try:
-            self.check(task_config(config), overrides)
-            make_dir(run_dir, "hydra.run.dir")
-            locks.hold(run_dir, "hydra.run.dir")  # before Hydra writes .hydra/ there: one writer per directory
-            RunDir(run_dir).previous_record(overrides)  # a completed run of other overrides
-            if not ranks.is_global_zero():
-                writes_nothing(config)
-        except (ConfigError, ValueError) as exc:
-            fail(str(exc))
+        with checks_complete():
+            self._run_start(config)
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        with checks_complete():
+            self._multirun_start(config)
+
+    def _run_start(self, config: DictConfig) -> None:
+        run_dir, overrides = Path(str(config.hydra.run.dir)), list(config.hydra.overrides.task)
+        self.check(task_config(config), overrides)
+        make_dir(run_dir, "hydra.run.dir")
+        locks.hold(run_dir, "hydra.run.dir")  # before Hydra writes .hydra/ there: one writer per directory
+        RunDir(run_dir).previous_record(overrides)  # a completed run of other overrides
+        if not ranks.is_global_zero():
+            writes_nothing(config)
+
+    def _multirun_start(self, config: DictConfig) -> None:
         sweep_dir = PROCESS.sweep_dir = Path(str(config.hydra.sweep.dir))
-        try:
-            if is_search(config):  # a search: its space and settings before any trial
-                from hybrid_sysid.experiments.search import study_settings
+        if is_search(config):  # a search: its space and settings before any trial
+            from hybrid_sysid.experiments.search import study_settings
 
-                study_settings(task_config(config), config.hydra.sweeper, config.hydra.overrides.task)
-            if str(config.hydra.launcher.get("_target_", "")) == SLURM_LAUNCHER:  # the request against the partition
-                from hybrid_sysid.cli.slurm import check_request
+            study_settings(task_config(config), config.hydra.sweeper, config.hydra.overrides.task)
+        if str(config.hydra.launcher.get("_target_", "")) == SLURM_LAUNCHER:  # the request against the partition
+            from hybrid_sysid.cli.slurm import check_request
 
-                check_request(config.hydra.launcher)
-            make_dir(sweep_dir, "hydra.sweep.dir")
-            locks.hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
-        except ConfigError as exc:
-            fail(str(exc))
+            check_request(config.hydra.launcher)
+        make_dir(sweep_dir, "hydra.sweep.dir")
+        locks.hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
         (sweep_dir / STOP_MARKER).unlink(missing_ok=True)  # a re-run continues an interrupted sweep
         was = SweepDir(sweep_dir).saved_config()
         if was is None:  # none yet, or unreadable: the jobs' own guards still hold
@@ -184,6 +187,20 @@ class Preflight(Callback):
                 f"hydra.sweep.dir = {sweep_dir} holds a sweep of other overrides ({' '.join(_sweep_of(was)[0])}); "
                 "re-run it with the same ones, or choose another hydra.sweep.dir"
             )
+
+
+@contextmanager
+def checks_complete():
+    """Within: a preflight's checks. Hydra would turn any exception of a callback into a warning and run the job
+    anyway, without the checks, the lock or the completed-run guard; so a refusal, and any check that cannot
+    complete (a damaged saved config, a value its check cannot hold in memory), ends the command here in one line,
+    exit status 2, before Hydra makes a directory. A signal (BaseException) passes."""
+    try:
+        yield
+    except ValueError as exc:  # a refused value (ConfigError), a damaged cache: their own words
+        fail(" ".join(str(exc).split()))
+    except Exception as exc:  # noqa: BLE001 - whatever a check raises, the command must not go on unchecked
+        fail(f"the checks before the job could not complete: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
 
 def writes_nothing(config: DictConfig) -> None:

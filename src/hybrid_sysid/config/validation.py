@@ -46,8 +46,10 @@ def config_key(key: str) -> str:
     return CONFIG_PATHS.get(key, f"data.{key}")
 
 
-def validate(cfg: DictConfig) -> None:
-    """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed."""
+def validate(cfg: DictConfig, training: bool = True) -> None:
+    """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed.
+    ``training=False``: a received run's saved config read to estimate with it, without what only training on
+    this machine needs (its loggers and callbacks installed, its dataset in memory)."""
     _check_known_keys(cfg)
     # typed values (derived ones are checked later); the car's constants have their own check
     _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
@@ -64,9 +66,10 @@ def validate(cfg: DictConfig) -> None:
     _check_trainer(cfg.trainer)
     with _placed("model.optim"):
         OptimSettings(**cfg.model.optim).validate()
-    validate_loggers(cfg)
-    validate_callbacks(cfg)
-    check_memory(cfg.data.n_roads, cfg.data.n_masses, cfg.data.n_steps)  # against the memory the process may use
+    if training:
+        validate_loggers(cfg)
+        validate_callbacks(cfg)
+        check_memory(cfg.data.n_roads, cfg.data.n_masses, cfg.data.n_steps)  # against the memory the process may use
     spec = DatasetSpec.from_config(cfg)
     with _placed():
         BatchSettings(cfg.model.batch_size, cfg.noise.train_std, cfg.noise.get("train_std_max")).validate()

@@ -149,7 +149,8 @@ def study_settings(cfg: DictConfig, settings, arguments, where: str = "hydra.swe
     params, fixed = dict(settings.get("params") or {}), []
     for override in OverridesParser.create().parse_overrides(list(arguments)):
         if override.is_sweep_override():  # a sweep on the command line is a dimension of the space
-            params[override.get_key_element()] = override.get_value_element_as_str()
+            # as written (Hydra cannot print a sweep back), parsed again by check_search like the preset's own
+            params[override.get_key_element()] = override.get_value_string()
         else:
             fixed.append(override.input_line)
     space = check_search(cfg, params, settings.get("n_trials"), where)

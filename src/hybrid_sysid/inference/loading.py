@@ -9,6 +9,7 @@ from pathlib import Path
 import torch
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config import Config, validate
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.inference.estimator import Estimator
 from hybrid_sysid.inference.inputs import InputError
@@ -27,6 +28,7 @@ def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estima
     flag run_error)."""
     run = RunDir(run_dir)
     cfg = _as_input(run, run.saved_config)
+    _checked(run, cfg)
     try:
         record = run.record()
     except ConfigError:  # unreadable: the run's test error is then unknown (the flag run_error says so)
@@ -38,6 +40,18 @@ def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estima
     try:
         return Estimator(net, cfg, baseline=baseline, record=record)
     except Exception as exc:  # noqa: BLE001 - the data section, read for the trained range, lacks or mistypes keys
+        raise InputError("run", Shown(str(run.path)), f"a run whose {CONFIG} can be read ({_one_line(exc)})") from None
+
+
+def _checked(run: RunDir, cfg: DictConfig) -> None:
+    """The saved config gets every check of a command line (config.validate), but those of training on this
+    machine: a received run's window of 0 steps or time step of 0 is one line here, not a traceback later."""
+    try:
+        full = OmegaConf.merge(OmegaConf.structured(Config), {k: v for k, v in cfg.items() if k != "hydra"})
+        validate(full, training=False)
+    except ConfigError as exc:
+        raise InputError(f"run = {run.path}: {exc.key}", exc.value, exc.allowed, exc.missing) from None
+    except Exception as exc:  # noqa: BLE001 - a key or a type this version does not have, a section cut short
         raise InputError("run", Shown(str(run.path)), f"a run whose {CONFIG} can be read ({_one_line(exc)})") from None
 
 
