@@ -52,9 +52,7 @@ def run_study(config: DictConfig, launcher, settings: dict, arguments: list[str]
         fail(str(exc))
     sweep_dir.mkdir(parents=True, exist_ok=True)
     optuna.logging.set_verbosity(optuna.logging.WARNING)  # the sweep prints its own lines
-    storage = s.storage or f"sqlite:///{sweep_dir / STUDY_FILE}"
-    study = optuna.create_study(study_name=s.name, storage=storage, direction=s.direction, load_if_exists=True)
-    _own(study, sweep_dir if s.storage else None, s)
+    study = open_study(s, sweep_dir)
     SweepDir(sweep_dir).write_config(config)
     done = sum(t.state.is_finished() for t in study.get_trials(deepcopy=False))
     if done:
@@ -74,6 +72,14 @@ def run_study(config: DictConfig, launcher, settings: dict, arguments: list[str]
             returns.extend(ran)
     _write_results(study, sweep_dir, s)
     return returns
+
+
+def open_study(s: StudySettings, sweep_dir: Path):
+    """The search's study, made or resumed (hybrid_sysid.cli.study: several searches starting at once on one
+    storage; one search per study)."""
+    from hybrid_sysid.cli.study import open_owned
+
+    return open_owned(s, s.storage or f"sqlite:///{sweep_dir / STUDY_FILE}", sweep_dir if s.storage else None, _own)
 
 
 def _own(study, sweep_dir: Path | None, s: StudySettings) -> None:
