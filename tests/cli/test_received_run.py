@@ -1,12 +1,17 @@
 """A received run directory is data: its saved config gets the checks of a command line before predict estimates
 with it (hybrid_sysid.inference.loading), in one line, exit status 2, nothing written."""
 
+import os
+import resource
 import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
 from helpers.estimator_run import predict
+from helpers.hostile import laughs
 from helpers.tree import snapshot
 
 
@@ -47,3 +52,85 @@ def test_a_received_runs_values_get_a_command_lines_checks(
     assert code == 2 and out == "", err
     assert len(err.strip().splitlines()) == 1 and f"run = {run}: {words}" in err, err
     assert snapshot(tmp_path, recording.parent) == before
+
+
+def test_a_billion_laughs_in_a_saved_config_is_one_line_at_once(tiny_run, tmp_path, cli_in_process):
+    """Chained aliases in .hydra/config.yaml (once: eval ran 7.5 min at 2.2 GB) are refused by their expanded
+    size before OmegaConf builds anything; eval's preflight says so in one line, exit 2, nothing written."""
+    from hybrid_sysid.cli.evaluate import main as evaluate
+
+    run = tmp_path / "received"
+    shutil.copytree(tiny_run, run)
+    with open(run / ".hydra" / "config.yaml", "a") as f:
+        f.write(laughs(6, 10))  # a million leaves: seconds and a few hundred MB, expanded
+    before = snapshot(tmp_path)
+    code, out, err = cli_in_process(evaluate, f"run={run}", f"hydra.run.dir={tmp_path / 'ev'}", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert "config.yaml is damaged" in err and "nodes with its aliases expanded" in err, err
+    assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize("kind", ["nested", "fifo"])
+def test_a_damaged_metrics_json_leaves_the_runs_error_unknown(tiny_run, tmp_path, recording, capsys, kind):
+    """metrics.json nested 100,000 deep (once a RecursionError named as the config's) or a FIFO (once a
+    reader waiting forever): the run estimates, its test error unknown (flag run_error)."""
+    run = tmp_path / "received"
+    shutil.copytree(tiny_run, run)
+    record = run / "metrics.json"
+    record.unlink()
+    if kind == "fifo":
+        os.mkfifo(record)
+    else:
+        record.write_text("[" * 100_000 + "]" * 100_000)
+    code, out, err = predict(capsys, f"run={run}", f"input={recording}", "resample=true")
+    assert code == 0, err
+    assert "run_error" in out and "test error is unknown" in err, err
+
+
+def test_a_device_as_the_input_is_one_line_without_reading_it(tiny_run, tmp_path):
+    """input=/dev/zero (once read until memory ran out: a MemoryError) is refused before any read, here under
+    an address-space limit that reading it would exceed."""
+    proc = subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", "input=/dev/zero"],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        preexec_fn=lambda: resource.setrlimit(resource.RLIMIT_AS, (6 * 2**30, 6 * 2**30)),
+    )
+    assert proc.returncode == 2 and len(proc.stderr.strip().splitlines()) == 1, proc.stderr[-2000:]
+    assert "input = /dev/zero is not allowed: a regular file" in proc.stderr
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_non_ascii_names_under_an_ascii_locale_print_escaped(tiny_run, tmp_path):
+    """A recording named sitz_ä under LC_ALL=C without UTF-8 mode (once a UnicodeEncodeError traceback, exit 1):
+    the table prints it escaped, the output CSV keeps it as UTF-8."""
+    path = tmp_path / "drive.csv"
+    t = np.arange(2000) * 0.005
+    rows = "".join(f"sitz_ä,{ti},{np.sin(9 * ti)},{np.cos(7 * ti)}\n" for ti in t)
+    path.write_text("recording,time,seat_acc,body_acc\n" + rows, encoding="utf-8")
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONIOENCODING", "HYDRA_FULL_ERROR")}
+    env.update(LC_ALL="C", LANG="C", PYTHONUTF8="0")
+    out = tmp_path / "estimates.csv"
+    proc = subprocess.run(
+        [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", f"input={path}", f"output={out}"],
+        cwd=tmp_path,
+        env=env,
+        capture_output=True,
+        timeout=300,
+    )
+    assert proc.returncode == 0 and b"Traceback" not in proc.stderr, proc.stderr[-2000:]
+    assert b"sitz_\\xe4" in proc.stdout
+    assert out.read_text(encoding="utf-8").splitlines()[1].startswith("sitz_ä,")
+
+
+def test_a_report_counts_a_metrics_json_nested_deep_as_unreadable(tiny_run, tmp_path, capsys):
+    """Once a RecursionError traceback: now the run is one of the report's unreadable runs (exit 1)."""
+    from hybrid_sysid.cli.report import main
+
+    run = tmp_path / "received"
+    shutil.copytree(tiny_run, run)
+    (run / "metrics.json").write_text("[" * 100_000 + "]" * 100_000)
+    assert main([str(run), f"out={tmp_path / 'out'}"]) == 1
+    assert "1 runs, 1 failed or unreadable" in capsys.readouterr().err

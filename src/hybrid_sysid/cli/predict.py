@@ -5,10 +5,9 @@
 The command parses its key=value arguments, reads the file and prints; the estimates come from
 ``hybrid_sysid.inference.estimator``, the code the Python API runs. Bad input prints one line on stderr naming the
 problem and exits with status 2 (so does running out of memory); Ctrl-C prints one line and exits with status
-130. output= never replaces the input, a file inside a run directory, or (without overwrite=true) any existing
-file. Estimates not to trust are marked in the column flag, with one warning line per kind on stderr. File
-formats, output columns and flags:
-docs/predict.md.
+130. output= never replaces the input, a file inside a run or sweep directory, or (without overwrite=true) any
+existing file. Estimates not to trust are marked in the column flag, with one warning line per kind on stderr.
+File formats, output columns and flags: docs/predict.md.
 """
 
 from __future__ import annotations
@@ -56,8 +55,8 @@ def parse_args(argv: list[str]) -> dict:
 
 def check_output(args: dict) -> Path | None:
     """output= as a Path, after checking it replaces nothing it must not: not the input (also through a link or
-    another spelling of its path), no file inside a run directory (run= or any directory above it that holds a
-    run's config or record), and no existing file unless overwrite=true."""
+    another spelling of its path), no file inside a run or sweep directory (run= or any directory above it that
+    holds .hydra/, a record or a sweep's multirun.yaml), and no existing file unless overwrite=true."""
     if not args.get("output"):
         return None
     output = Path(args["output"])
@@ -72,13 +71,12 @@ def check_output(args: dict) -> Path | None:
     target, source = output.resolve(), Path(args["input"])
     if target == source.resolve() or (output.exists() and source.exists() and os.path.samefile(output, source)):
         refuse(f"it is the input file (input = {args['input']}); another file, an output never replaces its input")
-    where = "a path outside run directories, whose files are the run's record"
+    where = "a path outside run and sweep directories, whose files are their record"
     if target.is_relative_to(Path(args["run"]).resolve()):
         refuse(f"it lies inside the run directory run = {args['run']}; {where}")
-    for folder in target.parents:
-        for marker in (layout.CONFIG, layout.RECORD):
-            if (folder / marker).is_file():
-                refuse(f"it lies inside the run directory {folder} (it holds {marker}); {where}")
+    holder = layout.enclosing_run(output)  # a sweep's directory too (multirun.yaml)
+    if holder is not None:
+        refuse(f"it lies inside the run or sweep directory {holder}; {where}")
     if (output.exists() or output.is_symlink()) and not args.get("overwrite"):
         refuse("it exists; a new file, or overwrite=true to replace it")
     return output
@@ -151,7 +149,7 @@ body accelerations in m/s^2, CSV or .npz) with a trained run's network; prints a
 
   run=DIR             a run directory written by hybrid-sysid (its .hydra/config.yaml and checkpoints/)
   input=FILE          the recordings: a CSV (columns seat_acc, body_acc, and time unless dt= is given) or .npz
-  output=CSV          also write the table to this new file (never the input, nor a file inside a run directory)
+  output=CSV          also write the table to this new file (never the input, nor inside a run or sweep directory)
   overwrite=true      let output= replace an existing file
   windows=K           average the estimates of K windows per recording (default 8)
   resample=true       resample recordings sampled at another rate than the run's data.dt
@@ -168,6 +166,9 @@ example:
 def main(argv: list[str] | None = None) -> None:
     """Console script; exit status 2 with one line on stderr for bad input, 130 for Ctrl-C (128 + SIGINT)."""
     argv = sys.argv[1:] if argv is None else list(argv)
+    for stream in (sys.stdout, sys.stderr):  # an ASCII locale cannot encode a recording's or a path's name
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
     if any(a in ("-h", "--help") for a in argv):
         print(HELP.format(usage=USAGE), end="")
         return

@@ -118,6 +118,9 @@ def main(argv=None) -> int:
             return _error(str(UsageError("PATH", Shown(str(path)), f"a directory with runs ({RECORD}) at or below it")))
     if args.notes is not None and not args.notes.is_file():
         return _error(str(UsageError("notes", Shown(str(args.notes)), "a markdown file that exists")))
+    refused = _inside_a_run(args)
+    if refused:
+        return _error(refused)
     bad = 0
     try:
         if args.results is None or args.out is not None:
@@ -170,6 +173,23 @@ def main(argv=None) -> int:
     except OSError as exc:  # e.g. out= on a read-only file system: the runs themselves are untouched
         return _error(f"cannot write the report: {type(exc).__name__}: {exc}")
     return 1 if bad else 0
+
+
+def _inside_a_run(args) -> str | None:
+    """results= never lies inside a run or sweep directory, whose files are their record (a results page there
+    once replaced a run's metrics.json); out= neither, but for a PATH itself, where the summary goes by default."""
+    from hybrid_sysid.runs.layout import enclosing_run
+
+    own = {p.resolve() for p in args.paths}
+    for key in ("results", "out"):
+        value = getattr(args, key)
+        holder = None if value is None else enclosing_run(value)
+        if holder is not None and not (key == "out" and Path(value).resolve() in own):
+            allowed = "a path outside run and sweep directories, whose files are their record"
+            return str(
+                UsageError(key, Shown(str(value)), f"it lies inside the run or sweep directory {holder}; {allowed}")
+            )
+    return None
 
 
 def draw_run_figures(paths, exclude=()) -> int:

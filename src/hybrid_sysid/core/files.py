@@ -1,9 +1,11 @@
-"""Writing a file so that no reader, and no crash, ever sees half of it."""
+"""Writing a file so that no reader, and no crash, ever sees half of it; reading a received file within limits of
+size, type and nesting."""
 
 from __future__ import annotations
 
 import json
 import os
+import stat
 import tempfile
 from pathlib import Path
 from typing import Callable
@@ -41,3 +43,116 @@ def write_yaml_atomic(path: Path, payload) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, lambda tmp: tmp.write_text(yaml.safe_dump(payload, sort_keys=False)))
+
+
+# Reading a file received from someone else (a run directory, a sweep's multirun.yaml): data that may be hostile.
+# Each limit is far above what the project writes (a run's config and record are a few kB) and far below what
+# hangs a command or fills its memory.
+MAX_BYTES = 16 * 2**20
+MAX_DEPTH = 64  # nesting of JSON arrays and objects, YAML sequences and mappings
+MAX_YAML_NODES = 100_000  # a YAML file's nodes with each alias counted as the whole node it repeats
+
+
+class UnreadableFile(ValueError):
+    """A received file refused before or while it is parsed: its text says why in a few words."""
+
+
+def read_text(path: str | os.PathLike, limit: int = MAX_BYTES) -> str:
+    """A regular file's text (after symbolic links), at most ``limit`` bytes, as UTF-8. A FIFO, a device (a link
+    to /dev/zero), a directory or a larger file is UnreadableFile, without waiting on it or reading past
+    ``limit``."""
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK)  # a FIFO's open would otherwise wait for a writer
+    if not stat.S_ISREG(os.fstat(fd).st_mode):
+        os.close(fd)
+        raise UnreadableFile("not a regular file")
+    with os.fdopen(fd, "rb") as f:
+        data = f.read(limit + 1)  # the size may grow after fstat: never read past the limit
+    if len(data) > limit:
+        raise UnreadableFile(f"larger than {limit} bytes")
+    return data.decode("utf-8")
+
+
+def read_json(path: str | os.PathLike, limit: int = MAX_BYTES, depth: int = MAX_DEPTH):
+    """A received JSON file's data (read_text's limits), nested at most ``depth`` deep."""
+    text = read_text(path, limit)
+    try:
+        data = json.loads(text)
+    except RecursionError:
+        raise UnreadableFile(f"nested deeper than {depth}") from None
+    _check_depth(data, depth)
+    return data
+
+
+def read_yaml_text(path: str | os.PathLike, limit: int = MAX_BYTES) -> str:
+    """A received YAML file's text (read_text's limits) once its node graph, composed without building any value,
+    is at most MAX_DEPTH deep and MAX_YAML_NODES large with every alias expanded (a "billion laughs" of chained
+    aliases is a few lines that expand beyond any memory)."""
+    import yaml
+
+    text = read_text(path, limit)
+    try:
+        root = yaml.compose(text, Loader=yaml.SafeLoader)
+    except RecursionError:
+        raise UnreadableFile(f"nested deeper than {MAX_DEPTH}") from None
+    except yaml.YAMLError as exc:
+        raise UnreadableFile(f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
+    if root is not None:
+        _check_yaml_size(root)
+    return text
+
+
+def read_yaml(path: str | os.PathLike, limit: int = MAX_BYTES):
+    """A received YAML file as plain data (read_yaml_text's limits)."""
+    import yaml
+
+    return yaml.safe_load(read_yaml_text(path, limit))
+
+
+def _children(node) -> list:
+    if isinstance(node, dict):
+        return list(node.values())
+    if isinstance(node, list):
+        return node
+    return []
+
+
+def _check_depth(data, depth: int) -> None:
+    stack = [(data, 0)]
+    while stack:
+        node, level = stack.pop()
+        if level > depth:
+            raise UnreadableFile(f"nested deeper than {depth}")
+        stack.extend((child, level + 1) for child in _children(node))
+
+
+def _check_yaml_size(root) -> None:
+    """Nodes counted as construction would build them (an alias shares its node, counted at every use), in
+    post-order without recursion; a node within itself (a recursive alias) is refused."""
+    import yaml
+
+    def kids(node):
+        if isinstance(node, yaml.MappingNode):
+            return [n for pair in node.value for n in pair]
+        return list(node.value) if isinstance(node, yaml.SequenceNode) else []
+
+    size, open_ = {}, set()
+    stack = [(root, 0)]
+    while stack:
+        node, level = stack.pop()
+        if level > MAX_DEPTH:
+            raise UnreadableFile(f"nested deeper than {MAX_DEPTH}")
+        key = id(node)
+        if key in size:
+            continue
+        if key in open_:  # its children are counted: now itself
+            size[key] = 1 + sum(size[id(k)] for k in kids(node))
+            if size[key] > MAX_YAML_NODES:
+                raise UnreadableFile(f"more than {MAX_YAML_NODES} nodes with its aliases expanded")
+            open_.discard(key)
+            continue
+        open_.add(key)
+        stack.append((node, level))
+        for child in kids(node):
+            if id(child) in open_ and id(child) not in size:
+                raise UnreadableFile("an alias within its own anchor")
+            stack.append((child, level + 1))

@@ -37,6 +37,8 @@ def read_input(path: Path, dt: float | None = None) -> Recordings:
     time column or dt array, or overrides it when it agrees within UNIFORM_RTOL (for rounded time stamps)."""
     if not path.exists():
         raise InputError("input", Shown(str(path)), "a file that exists")
+    if not path.is_file():  # /dev/zero never ends, a FIFO waits for a writer: neither is a recording
+        raise InputError("input", Shown(str(path)), "a regular file (a CSV or .npz file), not a device, FIFO or folder")
     if path.is_file() and path.stat().st_size == 0:
         raise InputError(
             "input", Shown(str(path)), "a CSV or .npz file of recordings, not an empty one (docs/predict.md)"

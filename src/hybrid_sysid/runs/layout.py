@@ -24,3 +24,16 @@ STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted,
 PROGRESS = ".progress"  # in a sweep directory: a JSON line (jobs, swept keys, start), then one line per ended job
 # what a run's MLflow run keeps of its files: the file -> its folder among the artifacts
 TRACKED = {RECORD: "", CURVES: "", CONFIG: "config", OVERRIDES: "config", HYDRA: "config"}
+
+
+def enclosing_run(path):
+    """The run or sweep directory at or above ``path`` (links and ``..`` resolved): the nearest folder holding
+    .hydra/, multirun.yaml or metrics.json; None outside any. An output never lands there: those files are a
+    record only their own command writes."""
+    from pathlib import Path
+
+    path = Path(path).resolve()
+    for folder in (path, *path.parents):
+        if (folder / ".hydra").is_dir() or (folder / SWEEP_CONFIG).is_file() or (folder / RECORD).is_file():
+            return folder
+    return None

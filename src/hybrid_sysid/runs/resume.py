@@ -10,7 +10,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import flatten
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.runs import layout
-from hybrid_sysid.runs.rundir import RunDir
+from hybrid_sysid.runs.rundir import RunDir, load_config
 
 log = logging.getLogger("hybrid_sysid")
 # keys that cannot change a run's weights or scores, so a resumed run may differ in them (a name ending in "."
@@ -41,7 +41,7 @@ def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
     if not run.config_file.is_file():
         bad("resume", Shown(str(run.path)), f"the directory holds no run (no {layout.CONFIG})")
     try:
-        saved = OmegaConf.to_container(OmegaConf.load(run.config_file), resolve=False)
+        saved = OmegaConf.to_container(load_config(run.config_file), resolve=False)
     except Exception as exc:  # noqa: BLE001 - a damaged file cannot tell; the run's own files still resume
         log.warning("%s is unreadable (%s); resuming without comparing the configs", run.config_file, exc)
         return

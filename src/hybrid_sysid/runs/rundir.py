@@ -11,16 +11,15 @@ reads them as runs.
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from pathlib import Path
 
 import yaml
-from omegaconf import DictConfig, OmegaConf
+from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
-from hybrid_sysid.core.files import write_atomic, write_json_atomic, write_yaml_atomic
+from hybrid_sysid.core.files import read_json, read_yaml_text, write_atomic, write_json_atomic, write_yaml_atomic
 from hybrid_sysid.runs import layout
 
 log = logging.getLogger("hybrid_sysid")
@@ -100,7 +99,7 @@ class RunDir:
         if not self.record_file.is_file():
             return None
         try:
-            record = json.loads(self.record_file.read_text())
+            record = read_json(self.record_file)  # a received file: bounded in size, type and depth
         except (OSError, ValueError) as exc:
             self._damaged(key, layout.RECORD, exc)
         if not isinstance(record, dict):
@@ -124,7 +123,7 @@ class RunDir:
         if not self.config_file.is_file():
             bad(key, Shown(str(self.path)), f"it has no {layout.CONFIG} (a run directory written by hybrid-sysid)")
         try:
-            cfg = OmegaConf.load(self.config_file)
+            cfg = load_config(self.config_file)
         except Exception as exc:  # noqa: BLE001 - yaml's errors are many classes; the message says which
             self._damaged(key, layout.CONFIG, exc)
         if not isinstance(cfg, DictConfig):
@@ -271,8 +270,15 @@ def find_runs(path: Path) -> list[Path]:
 
 
 def read_yaml(path: Path):
-    """A YAML file as plain data; None when it is missing or damaged (a report then knows less of the run)."""
+    """A YAML file as plain data; None when it is missing, damaged or beyond core.files' limits (a report then
+    knows less of the run)."""
     try:
-        return yaml.safe_load(Path(path).read_text(encoding="utf-8"))
-    except (OSError, UnicodeDecodeError, yaml.YAMLError):
+        return yaml.safe_load(read_yaml_text(path))
+    except (OSError, ValueError, yaml.YAMLError):  # UnicodeDecodeError and core.files' refusals are ValueErrors
         return None
+
+
+def load_config(path: Path) -> DictConfig | ListConfig:
+    """A received YAML file as OmegaConf reads it, within core.files' limits (size, regular file, depth, aliases
+    expanded): what OmegaConf.load would do without them."""
+    return OmegaConf.create(read_yaml_text(path))

@@ -8,7 +8,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.runs import layout
-from hybrid_sysid.runs.rundir import read_yaml
+from hybrid_sysid.runs.rundir import load_config, read_yaml
 
 
 class SweepDir:
@@ -22,7 +22,7 @@ class SweepDir:
     def saved_config(self) -> DictConfig | None:
         """multirun.yaml as a config; None when it is absent or cannot be read."""
         try:
-            cfg = OmegaConf.load(self.config_file)
+            cfg = load_config(self.config_file)
         except Exception:  # noqa: BLE001 - absent or damaged: the sweep's own guards still hold
             return None
         return cfg if isinstance(cfg, DictConfig) else None

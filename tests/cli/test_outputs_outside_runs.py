@@ -1,0 +1,65 @@
+"""An output never lands inside a run or sweep directory (one holding .hydra/, multirun.yaml or metrics.json, or
+under one): hybrid-sysid-report's results= and out=, hybrid-sysid-predict's output=, even with overwrite=true. One
+line, exit status 2, every file of the run and the sweep as it was."""
+
+import shutil
+
+import numpy as np
+import pytest
+
+from helpers.estimator_run import predict
+from helpers.tree import snapshot
+
+
+@pytest.fixture
+def run_and_sweep(tmp_path, tiny_run):
+    """A copy of the trained run, and a sweep directory of one job (its multirun.yaml and the run)."""
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run)
+    sweep = tmp_path / "sweep"
+    shutil.copytree(tiny_run, sweep / "0")
+    (sweep / "multirun.yaml").write_text("hydra:\n  mode: MULTIRUN\n")
+    return run, sweep
+
+
+@pytest.mark.parametrize(
+    "target",
+    ["run/metrics.json", "run/checkpoints/best.ckpt", "run/new.md", "sweep/multirun.yaml", "sweep/pages"],
+)
+def test_report_results_inside_a_run_or_sweep_is_refused(tmp_path, run_and_sweep, capsys, target):
+    from hybrid_sysid.cli.report import main
+
+    run, sweep = run_and_sweep
+    before = snapshot(tmp_path)
+    code = main([str(run), f"results={tmp_path / target}"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"results = {tmp_path / target} is not allowed: it lies inside the run or sweep directory" in err
+    assert snapshot(tmp_path) == before
+
+
+def test_report_out_inside_another_run_is_refused_but_its_own_path_is_the_default(tmp_path, run_and_sweep, capsys):
+    from hybrid_sysid.cli.report import main
+
+    run, sweep = run_and_sweep
+    before = snapshot(tmp_path)
+    assert main([str(run), f"out={sweep / '0'}"]) == 2
+    assert "out = " in capsys.readouterr().err and snapshot(tmp_path) == before
+    assert main([str(sweep), f"out={sweep}"]) == 0  # a PATH itself: where its summary goes without out=
+    assert (sweep / "summary.md").is_file()
+
+
+@pytest.mark.parametrize("target", ["sweep/multirun.yaml", "sweep/0/metrics.json", "sweep/table.csv"])
+def test_predict_output_inside_a_sweep_is_refused_even_with_overwrite(tmp_path, run_and_sweep, capsys, target):
+    run, sweep = run_and_sweep
+    recording = tmp_path / "drive.csv"
+    t = np.arange(2000) * 0.005
+    np.savetxt(recording, np.c_[t, np.sin(9 * t), np.cos(7 * t)], delimiter=",", header="time,seat_acc,body_acc")
+    recording.write_text(recording.read_text().lstrip("# "))
+    before = snapshot(tmp_path)
+    code, out, err = predict(
+        capsys, f"run={run}", f"input={recording}", f"output={tmp_path / target}", "overwrite=true"
+    )
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert "it lies inside the run or sweep directory" in err and str(sweep) in err
+    assert snapshot(tmp_path) == before
