@@ -49,9 +49,7 @@ def test_only_the_global_rank_zero_is_zero(env, variables, zero):
         ({"NODE_RANK": "2", "LOCAL_RANK": "0"}, 2, 1),  # a third node where two were given
     ],
 )
-def test_a_node_count_not_matching_the_launched_processes_names_trainer_num_nodes(
-    env, variables, nodes, devices
-):
+def test_a_node_count_not_matching_the_launched_processes_names_trainer_num_nodes(env, variables, nodes, devices):
     env(**variables)
     with pytest.raises(ConfigError, match="trainer.num_nodes") as caught:
         check_world(nodes, devices)
