@@ -334,3 +334,19 @@ def test_tuning_figure_one_line_per_objective_and_tuning_at_the_chosen_k(tmp_pat
             assert default.get_linestyle() == "--" and tuned.get_linestyle() == "-"
             assert to_rgba(default.get_color()) == to_rgba(tuned.get_color())
         assert to_rgba(style["labelled, tuned"].get_color()) != to_rgba(style["hybrid, tuned"].get_color())
+
+
+def test_a_table_of_more_rows_than_one_figure_shows_apart_gets_no_robustness_figure(tmp_path, drawn):
+    from hybrid_sysid.report.results_page import write_results
+    from hybrid_sysid.report.sweep_figures import MAX_ROWS
+
+    # MAX_ROWS // 2 + 1 values of a swept key x K = 1 and 8: two rows more than MAX_ROWS
+    rng, sweep = np.random.default_rng(5), tmp_path / "wide"
+    for i in range(MAX_ROWS // 2 + 1):
+        values = {("test", n, k, p): rng.uniform(0.02, 0.3) for n in NOISES for k in KS_SWEPT for p in PARAMS}
+        make_run(sweep / str(i), [f"model.optim.lr={0.001 * (i + 1):g}", "seed=0"], 0, results=known_results(values))
+    write_summary(sweep)
+    assert "robustness" not in drawn and not (sweep / "figures" / "robustness.png").exists()
+    assert (sweep / "summary.md").is_file()  # the table still is
+    page, _, _ = write_results(tmp_path / "results.md", [sweep], command="the test's sweep")
+    assert f"No robustness figure: {2 * (MAX_ROWS // 2 + 1)} rows" in page and "![robustness" not in page

@@ -160,8 +160,11 @@ def _section(df, root, group, merged, title, slug, figures, split, metric, compa
     if any(c[2] == "mean" for c in table.columns):
         figures.mkdir(parents=True, exist_ok=True)
         draw = sweep_figures.robustness_figure
-        write_atomic(figures / f"{slug}.png", lambda p: draw(table, p, metric=metric, split=split))
-        lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
+        if sweep_figures.fits_one_figure(table):
+            write_atomic(figures / f"{slug}.png", lambda p: draw(table, p, metric=metric, split=split))
+            lines += [f"![robustness: {title}]({figures.name}/{slug}.png)", ""]
+        else:
+            lines += [f"No robustness figure: {len(table)} rows are more lines than one figure shows apart.", ""]
         for extra in extras_of(table):  # what the experiment adds (report.extras)
             for name, figure in extra.figures.items():
                 write_atomic(figures / f"{slug}_{name}.png", lambda p, figure=figure: figure(table, p))

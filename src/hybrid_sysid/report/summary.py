@@ -137,7 +137,8 @@ def write_summary(
             for extra in extras_of(table):
                 for name, draw in extra.figures.items():
                     write_atomic(out / f"{name}.png", lambda p, draw=draw: draw(table, p))
-        if any(c[2] == "mean" for c in table.columns):  # at least one completed run
+        # at least one completed run, and few enough rows for one legible figure
+        if any(c[2] == "mean" for c in table.columns) and sweep_figures.fits_one_figure(table):
             write_atomic(
                 out / "robustness.png", lambda p: sweep_figures.robustness_figure(table, p, metric=metric, split=split)
             )

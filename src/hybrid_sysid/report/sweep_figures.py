@@ -56,6 +56,16 @@ def draw_rows(ax, table, param, levels, styles, labels) -> None:
         )
 
 
+# one line and one legend entry per table row: beyond this many the legend covers the panels and the lines
+# cannot be told apart (experiment=anchored has 80 rows; its own figure draws them a fault per panel)
+MAX_ROWS = 24
+
+
+def fits_one_figure(table: pd.DataFrame) -> bool:
+    """Whether robustness_figure can draw the table legibly (at most MAX_ROWS rows)."""
+    return len(table) <= MAX_ROWS
+
+
 def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_dev", split: str = "test") -> None:
     """The metric in percent against noise std, one line per table row, one panel per parameter; error bars: std
     over seeds. One colour per row without its K (e.g. per objective), one line style per K (K = 1 solid, the
