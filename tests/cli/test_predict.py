@@ -270,7 +270,7 @@ def test_bad_arguments_and_runs(tiny_run, est, tmp_path, capsys):
             r"output = .*out.csv is not allowed: a file in a directory that exists \(.*nowhere "
             r"does not\)",
         ),
-        ((run, f"input={tmp_path}"), r"is not allowed: a file that can be read as CSV \(IsADirectoryError"),
+        ((run, f"input={tmp_path}"), r"is not allowed: a regular file \(a CSV or .npz file\), not a device"),
         (
             (run, f"input={tmp_path / 'no_dt.npz'}"),
             r"no_dt.npz is not allowed: .*\(it has no array dt; its arrays: seat_acc, body_acc\)",
@@ -341,7 +341,7 @@ def test_output_never_replaces_a_runs_files(tiny_run, est, tmp_path, capsys):
     before = files_under(tmp_path)
     assert run / "metrics.json" in before and run / "checkpoints" / "best.ckpt" in before
     in_run = rf"is not allowed: it lies inside the run directory run = {re.escape(str(run))}; a path outside run "
-    in_run += "directories"
+    in_run += "and sweep directories"
     cases = [
         (run / "metrics.json", in_run),
         (run / "checkpoints" / "best.ckpt", in_run),
@@ -350,12 +350,12 @@ def test_output_never_replaces_a_runs_files(tiny_run, est, tmp_path, capsys):
         (tmp_path / "to_record.csv", in_run),
         (
             other / "estimates.csv",
-            r"is not allowed: it lies inside the run directory .*other \(it holds metrics.json\); a",
+            r"is not allowed: it lies inside the run or sweep directory .*other; a",
         ),
-        (other / "plots" / "estimates.csv", r"is not allowed: it lies inside the run directory .*other \(it holds "),
+        (other / "plots" / "estimates.csv", r"is not allowed: it lies inside the run or sweep directory .*other; a"),
         (
             configured / "estimates.csv",
-            r"is not allowed: it lies inside the run directory .*configured \(it holds .hydra/config.yaml\)",
+            r"is not allowed: it lies inside the run or sweep directory .*configured; a",
         ),
     ]
     for output, message in cases:
