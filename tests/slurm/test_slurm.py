@@ -180,8 +180,9 @@ def test_a_job_killed_without_a_result_is_recorded_failed_and_the_sweep_ends(tmp
 
 
 def test_time_limit_requeues_and_resumes(tmp_path, tiny_cache):
-    # SLURM sends the time-limit signal in its 30 s checks, from 60 + 30 s before the two-minute limit: 30 to
-    # 60 s into each attempt, so 2500 steps (about a minute on one thread) never fit in the first. Every attempt
+    # SLURM sends the time-limit signal in its 30 s checks, from 30 + 30 s before the two-minute limit: 60 to 90 s
+    # into each attempt. The run trains for 90 s whatever the machine's speed (Lightning's max_time, whose clock
+    # the checkpoint carries), so the first attempt is always stopped and the second always completes it: it
     # records itself interrupted, is requeued (SLURM holds it about 2 min) and resumes from the last checkpoint
     sweep = tmp_path / "sw"
     proc = run_app(
@@ -190,11 +191,11 @@ def test_time_limit_requeues_and_resumes(tmp_path, tiny_cache):
         "launcher=slurm",
         "seed=0",
         *LONG,
-        "trainer.max_steps=2500",
+        "trainer.max_steps=1000000",
+        "+trainer.extra.max_time='00:00:01:30'",
         "trainer.threads=1",
         "hydra.launcher.timeout_min=2",
-        "hydra.launcher.signal_delay_s=60",
-        "hydra.launcher.max_num_timeout=4",
+        "hydra.launcher.signal_delay_s=30",
         f"hydra.sweep.dir={sweep}",
         cache=tiny_cache,
         timeout=900,
