@@ -1,5 +1,7 @@
 """Dataset generation, splits and the cache."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -123,6 +125,27 @@ def test_interrupted_write_leaves_nothing_loadable(tmp_path, monkeypatch):
     with pytest.raises(KeyboardInterrupt):
         get_dataset(SMALL, tmp_path)
     assert [p for p in tmp_path.iterdir() if p.suffix != ".lock"] == []
+
+
+def test_a_changed_simulator_never_loads_an_old_file(tmp_path, monkeypatch, small):
+    from hybrid_sysid.data import spec as spec_mod
+
+    get_dataset(SMALL, tmp_path)  # the file of the simulator as it is
+    (old,) = tmp_path.glob("qcm-*.npz")
+    monkeypatch.setattr(spec_mod, "SIMULATOR_VERSION", spec_mod.SIMULATOR_VERSION + 1)
+    newer = dataclasses.replace(small, seat_acc=small.seat_acc + 1.0)  # what the changed simulator gives
+    simulated = []
+    monkeypatch.setattr(dataset_mod, "generate_dataset", lambda spec: simulated.append(spec) or newer)
+    again = get_dataset(SMALL, tmp_path)
+    assert simulated == [SMALL]
+    np.testing.assert_array_equal(again.seat_acc, newer.seat_acc)
+    # the old file, even under the new key's name, holds its own key: refused, regenerated, never loaded
+    (new,) = set(tmp_path.glob("qcm-*.npz")) - {old}
+    new.write_bytes(old.read_bytes())
+    with pytest.warns(RuntimeWarning, match="another dataset"):
+        again = get_dataset(SMALL, tmp_path)
+    assert len(simulated) == 2
+    np.testing.assert_array_equal(again.seat_acc, newer.seat_acc)
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "garbage"])
