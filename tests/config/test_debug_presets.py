@@ -127,6 +127,21 @@ def test_bad_callbacks_profilers_and_paths_are_named(tmp_path, overrides, match)
         validate(composed(f"data.cache_dir={tmp_path}", *overrides))
 
 
+@pytest.mark.parametrize(
+    "overrides, match",
+    [
+        (["callbacks=early_stopping", "callbacks.early_stopping.mode=sideways"], r"mode. can be min, max"),
+        (["callbacks=model_summary", "callbacks.model_summary.max_depth=-7"], r"an integer >= -1"),
+        (["callbacks=early_stopping", "+callbacks.early_stopping.bogus=1"], r"bogus = 1 is not allowed: not an arg"),
+    ],
+)
+def test_a_callback_argument_its_class_refuses_is_named_before_any_work(tmp_path, overrides, match):
+    """Lightning's own checks of a callback's arguments run in validate, not first in the job after the data are
+    simulated and the run directory made (there: a traceback and a failed record)."""
+    with pytest.raises(ConfigError, match=r"^callbacks\.\w+.*" + match):
+        validate(composed(f"data.cache_dir={tmp_path}", "data=tiny", *overrides))
+
+
 def test_the_rich_bar_without_rich_is_one_line_naming_the_extra(monkeypatch):
     import importlib.util
 

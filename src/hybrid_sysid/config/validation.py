@@ -269,3 +269,16 @@ def validate_callbacks(cfg: DictConfig) -> None:
             )
         if "monitor" in cb:
             check_choice(f"callbacks.{name}.monitor", cb.monitor, MONITORS)
+        # built here, as the run builds it, so an argument the class refuses (EarlyStopping's mode, an unknown
+        # argument) is one line before any directory, not a traceback after the data's simulation
+        fill = {"monitor": MONITORS[1]} if cb.get("monitor") == "auto" else {}
+        try:
+            build(cb, f"callbacks.{name}", **fill)
+        except ConfigError:
+            raise
+        except Exception as exc:  # noqa: BLE001 - Lightning raises its MisconfigurationException, ValueError...
+            kind = target.rsplit(".", 1)[-1]
+            raise ConfigError(f"callbacks.{name}", allowed=f"{kind} refuses its arguments: {exc}") from None
+        depth = cb.get("max_depth", -1)  # a model summary checks it only when training starts
+        if not (isinstance(depth, int) and not isinstance(depth, bool) and depth >= -1):
+            bad(f"callbacks.{name}.max_depth", depth, "an integer >= -1 (-1: every layer, 0: no summary)")
