@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.cli.report import main
+from hybrid_sysid.runs.rundir import RunDir
 
 from helpers.evaluation_fakes import OBJECTIVES, make_run, make_sweep, parse_markdown
 
@@ -31,6 +32,18 @@ def test_report_on_sweep_with_failures_writes_everything_and_returns_1(sweep, ca
     assert set(pd.read_csv(sweep / "summary.csv").status) == {"completed", "failed", "unreadable"}
     assert_real_png(sweep / "figures" / "robustness.png")
     assert_real_png(sweep / "figures" / "learning_curves_compared.png")
+
+
+def test_report_on_a_sweep_with_an_interrupted_job_writes_everything_and_returns_1(tmp_path, capsys):
+    sweep = make_sweep(tmp_path / "sweep", failed=False)
+    # the record a job writes when a signal stops it (cli/job.py), by the same writer
+    RunDir(sweep / "4").record_end(["objective=hybrid", "seed=2", "noise=ladder"], 2, "interrupted", "by SIGTERM")
+    assert main([str(sweep)]) == 1
+    assert set(pd.read_csv(sweep / "summary.csv").status) == {"completed", "interrupted"}
+    failed = (sweep / "summary.md").read_text().split("## Failed jobs", 1)[1]
+    assert "`4` (objective=hybrid, seed=2): interrupted: by SIGTERM" in failed
+    assert (sweep / "figures" / "robustness.png").is_file()
+    assert main([str(sweep / "0")]) == 0  # a completed run alone: the interrupted one made the 1
 
 
 def test_report_merges_sweeps_into_report_dir_and_returns_0(tmp_path, monkeypatch, capsys):
