@@ -112,6 +112,24 @@ def test_a_logger_without_its_library_is_a_one_line_error(make_cfg, monkeypatch)
         validate(cfg)
 
 
+def test_an_mlflow_server_that_does_not_answer_is_one_line_before_any_work(make_cfg):
+    """MLflow would retry a closed port for minutes, then fail the run with a traceback; validate asks the port
+    first. A port just closed answers nothing; one listening passes; the password never shows."""
+    import socket
+
+    with socket.socket() as listening:
+        listening.bind(("127.0.0.1", 0))
+        listening.listen()
+        port = listening.getsockname()[1]
+        validate(make_cfg("data=tiny", "logger=mlflow", f"logger.mlflow.tracking_uri=http://127.0.0.1:{port}"))
+    uri = f"http://user:secret@127.0.0.1:{port}"
+    with pytest.raises(
+        ConfigError, match=r"^logger.mlflow.tracking_uri = http://user:\*\*\*@127.0.0.1:\d+ is not a"
+    ) as e:
+        validate(make_cfg("data=tiny", "logger=mlflow", f"logger.mlflow.tracking_uri={uri}"))
+    assert "no server answers" in str(e.value) and "secret" not in str(e.value)
+
+
 def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
     from hybrid_sysid.cli import process as app
 
