@@ -130,6 +130,25 @@ def test_an_mlflow_server_that_does_not_answer_is_one_line_before_any_work(make_
     assert "no server answers" in str(e.value) and "secret" not in str(e.value)
 
 
+def test_an_sqlite_store_that_is_no_database_is_one_line_before_any_work(make_cfg, tmp_path):
+    """A text file or a folder as the SQLite store is refused before the run (it was an 86-line SQLAlchemy
+    traceback and a failed run); a store MLflow made, an empty file and a file not yet there pass."""
+    import sqlite3
+
+    def check(path):
+        validate(make_cfg("data=tiny", "logger=mlflow", f"logger.mlflow.tracking_uri=sqlite:///{path}"))
+
+    (tmp_path / "notes.db").write_text("not a database\n")
+    (tmp_path / "folder.db").mkdir()
+    for path, why in ((tmp_path / "notes.db", "holds something else"), (tmp_path / "folder.db", "no regular file")):
+        with pytest.raises(ConfigError, match=rf"^logger.mlflow.tracking_uri = sqlite:///.* is not allowed: .*{why}"):
+            check(path)
+    sqlite3.connect(tmp_path / "real.db").execute("create table t (x)").connection.commit()
+    (tmp_path / "empty.db").touch()
+    for name in ("real.db", "empty.db", "new.db"):
+        check(tmp_path / name)
+
+
 def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
     from hybrid_sysid.cli import process as app
 

@@ -253,9 +253,9 @@ def validate_loggers(cfg: DictConfig) -> None:
                 allowed=f"it needs the {needs[0]} package, not installed: {install_command('loggers')}",
             )
         if target.endswith(".MLFlowLogger"):
-            from hybrid_sysid.training.tracking.server import check_server
+            from hybrid_sysid.training.tracking.server import check_store
 
-            check_server(str(lg.get("tracking_uri") or ""), f"logger.{name}.tracking_uri")
+            check_store(str(lg.get("tracking_uri") or ""), f"logger.{name}.tracking_uri")
 
 
 def validate_callbacks(cfg: DictConfig) -> None:
