@@ -93,6 +93,8 @@ class Estimator:
         """
         if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or windows < 1:
             raise InputError("windows", windows, "an integer >= 1")
+        if not isinstance(resample, (bool, np.bool_)):  # resample="false" is a true value: it would resample
+            raise InputError("resample", resample, "True or False")
         pairs = recordings(seat_acc, body_acc)
         names = list(range(len(pairs))) if names is None else list(names)
         if len(names) != len(pairs):

@@ -35,6 +35,8 @@ def recordings(seat_acc, body_acc) -> list[tuple[np.ndarray, np.ndarray]]:
 
 def _real(name, x):
     """x unchanged; bool and complex arrays would lose what they mean when read as float64."""
+    if np.ma.is_masked(x):  # np.asarray keeps the values under the mask: a gap would be read as data
+        raise InputError(name, Shown("a masked array with masked values"), "real numbers in m/s^2, none masked")
     dtype = np.asarray(x).dtype
     if dtype.kind in "bc":
         raise InputError(

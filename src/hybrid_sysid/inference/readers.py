@@ -4,6 +4,8 @@ their names and sampling interval. Bad input raises InputError naming the file, 
 from __future__ import annotations
 
 import csv
+import zipfile
+import zlib
 from collections import Counter
 from dataclasses import dataclass
 from pathlib import Path
@@ -11,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from hybrid_sysid.config.memory import tightest_memory
 from hybrid_sysid.core.checks import Shown
 from hybrid_sysid.inference.estimator import DT_RTOL
 from hybrid_sysid.inference.inputs import InputError
@@ -50,7 +53,8 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
     """Columns seat_acc, body_acc, and time (s, uniform) unless dt is given; an optional column ``recording``
     names the recording of each row (several recordings in one file)."""
     try:
-        df = pd.read_csv(path, skipinitialspace=True)
+        # names as written: read as numbers, "7" and "007" (or "1" and "1.0") would become one recording
+        df = pd.read_csv(path, skipinitialspace=True, converters={"recording": str})
     except pd.errors.EmptyDataError:
         raise InputError(
             "input", Shown(str(path)), "a header line and rows, not an empty file (docs/predict.md)"
@@ -179,7 +183,7 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
     """Arrays seat_acc and body_acc, 1-D (one recording) or 2-D (recordings, steps), and a scalar dt in s."""
     try:
         loaded = np.load(path, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as exc:
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile) as exc:
         raise InputError(
             "input", Shown(str(path)), f"a file that can be read as .npz ({type(exc).__name__}: {exc})"
         ) from None
@@ -191,16 +195,17 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
             "not an .npz archive",
         )
     with loaded as z:
-        arrays = {k: z[k] for k in z.files}
-    needed = list(CHANNELS) + ([] if dt is not None else ["dt"])
-    missing = [k for k in needed if k not in arrays]
-    if missing:
-        raise InputError(
-            "input",
-            Shown(str(path)),
-            f"arrays seat_acc, body_acc, and dt or dt= (it has no array {', '.join(missing)}; its arrays: "
-            f"{', '.join(arrays)})",
-        )
+        needed = list(CHANNELS) + ([] if dt is not None else ["dt"])
+        missing = [k for k in needed if k not in z.files]
+        if missing:
+            raise InputError(
+                "input",
+                Shown(str(path)),
+                f"arrays seat_acc, body_acc, and dt or dt= (it has no array {', '.join(missing)}; its arrays: "
+                f"{', '.join(z.files)})",
+            )
+        # only the arrays read: another array (an object array, a huge one) is never loaded
+        arrays = {k: npz_array(z, k, path) for k in (*CHANNELS, "dt") if k in z.files}
     for k in CHANNELS:
         a = arrays[k]
         if a.dtype.kind not in "fiu" or a.ndim not in (1, 2) or a.size == 0:
@@ -216,3 +221,31 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
             raise InputError(f"input = {path}: array dt", a.tolist(), "one number > 0 (seconds)")
         dt = choose_dt(float(a.item()), dt, path, "the array dt")
     return Recordings(arrays["seat_acc"], arrays["body_acc"], dt)
+
+
+# the .npy header versions numpy reads publicly; version 3.0 (UTF-8 field names, no float arrays) is left to np.load
+HEADER_READERS = {(1, 0): np.lib.format.read_array_header_1_0, (2, 0): np.lib.format.read_array_header_2_0}
+
+
+def npz_array(z: np.lib.npyio.NpzFile, key: str, path: Path) -> np.ndarray:
+    """One array of an .npz file, after its header: a compressed member may declare far more than the file's
+    size (a few MB of zeros unpack to GBs), so the size it declares must fit in the memory the process may still
+    use before it is unpacked. A damaged member (bad CRC, cut short) or an object array is one InputError."""
+    where = f"input = {path}: array {key}"
+    try:
+        with z.zip.open(f"{key}.npy") as f:
+            read_header = HEADER_READERS.get(np.lib.format.read_magic(f))
+            shape, _, dtype = read_header(f) if read_header else ((), False, np.dtype(np.uint8))
+        size = int(np.prod(shape, dtype=object)) * dtype.itemsize
+        tightest = tightest_memory()
+        if tightest is not None and size > tightest[0]:
+            raise InputError(
+                where,
+                Shown(f"shape {shape}, {size / 2**30:.3g} GiB"),
+                f"arrays that fit in the memory available, {tightest[0] / 2**30:.3g} GiB ({tightest[1]})",
+            )
+        return z[key]
+    except InputError:
+        raise
+    except (OSError, ValueError, EOFError, KeyError, zipfile.BadZipFile, zlib.error) as exc:
+        raise InputError(where, allowed=f"an array that can be read ({type(exc).__name__}: {exc})") from None
