@@ -123,6 +123,17 @@ def test_a_hybrid_search_never_reads_labels_and_a_rerun_trains_nothing(hybrid_jo
     assert clean["results"] != dirty["results"]  # the poison was there: the scores that use labels differ
 
 
+def test_a_rerun_rewrites_no_completed_runs_config(hybrid_job):
+    cfg, _, job = hybrid_job
+    saved = {p: p.read_bytes() for name in ("config.yaml", "overrides.yaml") for p in job.rglob(name)}
+    assert len(saved) == 2 * 5  # 3 trials, the default and the tuned run
+    # a value that is no override changed (a user's --config-dir file, a preset): every run is already completed,
+    # so each keeps the config it was trained with
+    changed = OmegaConf.merge(cfg, {"trainer": {"eval_every_n_steps": 2}})
+    run_tuned(changed, job, ["objective=hybrid"])
+    assert {p: p.read_bytes() for p in saved} == saved
+
+
 @started_early
 def tuned_sweep(tmp, env, tiny_cache):
     """The sweep as a user runs it, then the same command again: real processes (joblib's workers run the jobs).
