@@ -113,3 +113,23 @@ def test_a_best_checkpoint_that_is_not_a_regular_file_is_refused_not_replaced_by
     with pytest.raises(InputError, match="checkpoints/best.ckpt is a regular file"):
         load_estimator(run)
     assert RunDir(run).trained_checkpoint(which="last").name == "last.ckpt"  # asked for: still there
+
+
+@pytest.mark.parametrize("kind", ["fifo", "link to stdout", "link to a file"])
+def test_output_is_never_put_in_a_links_or_a_fifos_place(tmp_path, capsys, kind):
+    # output=/dev/stdout overwrite=true, run as root, would rename a file over /dev's link
+    seat = np.sin(np.arange(400) * 0.1)
+    recording = npz(tmp_path / "drive.npz", seat_acc=seat, body_acc=seat, dt=DT)
+    output = tmp_path / "out.csv"
+    if kind == "fifo":
+        os.mkfifo(output)
+    else:
+        (tmp_path / "table.csv").write_text("kept\n")
+        output.symlink_to("/proc/self/fd/1" if kind == "link to stdout" else tmp_path / "table.csv")
+    code, out, err = predict(
+        capsys, f"run={tmp_path / 'no_run'}", f"input={recording}", f"output={output}", "overwrite=true"
+    )
+    assert code == 2 and out == "" and len(err.splitlines()) == 1, err
+    assert "it is a symbolic link, FIFO or device" in err
+    assert output.is_symlink() if kind != "fifo" else output.is_fifo()
+    assert kind == "fifo" or (tmp_path / "table.csv").read_text() == "kept\n"

@@ -79,6 +79,9 @@ def check_output(args: dict) -> Path | None:
         refuse(f"it lies inside the run or sweep directory {holder}; {where}")
     if (output.exists() or output.is_symlink()) and not args.get("overwrite"):
         refuse("it exists; a new file, or overwrite=true to replace it")
+    if output.is_symlink() or (output.exists() and not output.is_file()):
+        # the rename would put a file in the link's or the FIFO's place: /dev/stdout, run as root, is such a link
+        refuse("a regular file or a new name to write the table to; it is a symbolic link, FIFO or device")
     return output
 
 
