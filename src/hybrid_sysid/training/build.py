@@ -16,7 +16,7 @@ from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.spec import DatasetSpec
 from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
 from hybrid_sysid.runs.rundir import RunDir
-from hybrid_sysid.training.callbacks import StopAtSafePoints, ValidateAtEnd
+from hybrid_sysid.training.callbacks import AtomicCheckpointIO, StopAtSafePoints, ValidateAtEnd
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -98,6 +98,7 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
         enable_model_summary=False,
         num_sanity_val_steps=0,
         default_root_dir=str(run_dir),
+        plugins=[AtomicCheckpointIO()],
         log_every_n_steps=LOG_EVERY,
     )  # the steps on which the module logs its training loss
     if t.get("profiler"):

@@ -6,14 +6,18 @@ carries on its clock and its curve.
 
 from __future__ import annotations
 
+import io
 import time
 from pathlib import Path
 from typing import Sequence
 
 import lightning as L
+import torch
+from lightning.pytorch.plugins.io import TorchCheckpointIO
 
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import Shown, bad
+from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.model.metrics import summarise
 from hybrid_sysid.training.tracking import curve_metrics, log_metrics
 
@@ -136,6 +140,21 @@ class RunCheckpoint(L.pytorch.callbacks.ModelCheckpoint):
         state["best_k_models"] = {str(here / p): v for p, v in state.get("best_k_models", {}).items()}
         state["dirpath"] = self.dirpath
         super().load_state_dict(state)
+
+
+class AtomicCheckpointIO(TorchCheckpointIO):
+    """Saves a checkpoint into a temporary file beside it, renamed over it (core.files.write_atomic). Lightning
+    writes a local checkpoint through fsspec, whose temporary file lies in the system's temp folder: where the
+    run is on another file system, the move is a copy, and a full disk cut it short in place of the previous,
+    good checkpoint."""
+
+    def save_checkpoint(self, checkpoint, path, storage_options=None) -> None:
+        if storage_options is not None:
+            super().save_checkpoint(checkpoint, path, storage_options)  # Lightning's own refusal
+        buffer = io.BytesIO()
+        torch.save(checkpoint, buffer)
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        write_atomic(path, lambda tmp: tmp.write_bytes(buffer.getbuffer()))
 
 
 class StopAtSafePoints(L.Callback):
