@@ -150,7 +150,7 @@ class AtomicCheckpointIO(TorchCheckpointIO):
 
     def save_checkpoint(self, checkpoint, path, storage_options=None) -> None:
         if storage_options is not None:
-            super().save_checkpoint(checkpoint, path, storage_options)  # Lightning's own refusal
+            return super().save_checkpoint(checkpoint, path, storage_options)  # Lightning refuses them
         buffer = io.BytesIO()
         torch.save(checkpoint, buffer)
         Path(path).parent.mkdir(parents=True, exist_ok=True)
