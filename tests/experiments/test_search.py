@@ -186,6 +186,76 @@ def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(
     assert best["best_value"] == min(t.value for t in study.trials) and best["completed"] == 3
 
 
+# a Hydra callback (+hydra.callbacks.cut): the job of trial ``trial``, in its parallel worker, sends the search's
+# process a SIGTERM at its 5th training step, as a user's kill would come; Hydra pickles the callback into the worker
+CUT_TRIAL = textwrap.dedent("""
+    import os
+    import signal
+    from hydra.experimental.callback import Callback
+
+    class CutTrial(Callback):
+        def __init__(self, trial):
+            self.trial, self.search = trial, os.getpid()  # made in the search's process
+
+        def on_job_start(self, config, **kwargs):
+            if config.hydra.job.num != self.trial:
+                return
+            from hybrid_sysid.training import run as train
+            build_model, search = train.build_model, self.search
+            def build(cfg, *args):
+                model = build_model(cfg, *args)
+                step, calls = model.training_step, []
+                def terminated(*args, **kwargs):
+                    calls.append(1)
+                    if len(calls) == 5:
+                        os.kill(search, signal.SIGTERM)
+                    return step(*args, **kwargs)
+                model.training_step = terminated
+                return model
+            train.build_model = build
+""")
+PARALLEL = [*LONGER, "launcher=joblib", "hydra.sweeper.n_jobs=2"]
+
+
+@pytest.mark.slow  # about a minute (three searches of 5 trials); by default the same promise without a launcher above
+def test_a_parallel_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(tmp_path, tiny_cache):
+    hooks = tmp_path / "hooks"
+    hooks.mkdir()
+    (hooks / "cut_trial.py").write_text(CUT_TRIAL)
+    path = os.pathsep.join(filter(None, [str(hooks), os.environ.get("PYTHONPATH")]))  # the workers inherit it
+    env = {**os.environ, "HYDRA_FULL_ERROR": "0", "PYTHONPATH": path}
+
+    def run(name, *extra):
+        cli = [a for a in command(tmp_path, name, *PARALLEL, cache=tiny_cache) if "sweeper.n_trials=" not in a]
+        cli += ["hydra.sweeper.n_trials=5", *extra]  # batches {0, 1}, {2, 3}, {4}
+        return subprocess.run(cli, cwd=tmp_path, env=env, capture_output=True, text=True, timeout=900)
+
+    proc = run("whole")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    study, records = results(tmp_path / "whole")
+    assert [t.state.name for t in study.trials] == ["COMPLETE"] * 5
+
+    # the same search, terminated during trial 3 (trial 2 beside it, running or just done)
+    proc = run("cut", "+hydra.callbacks.cut._target_=cut_trial.CutTrial", "+hydra.callbacks.cut.trial=3")
+    assert proc.returncode == 128 + signal.SIGTERM, proc.stderr[-3000:]
+    cut, _ = results(tmp_path / "cut")
+    states = [t.state.name for t in cut.trials]
+    assert states[:2] == ["COMPLETE"] * 2 and states[3] == "RUNNING" and len(states) == 4  # trial 4 never asked
+    assert json.loads((tmp_path / "cut" / "3" / "metrics.json").read_text())["status"] == "interrupted"
+
+    # the same command again: exit 0, the study and records of the uninterrupted search
+    proc = run("cut")
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    resumed, resumed_records = results(tmp_path / "cut")
+    assert [t.number for t in resumed.trials] == [0, 1, 2, 3, 4]
+    assert [t.params for t in resumed.trials] == [t.params for t in study.trials]
+    assert [t.value for t in resumed.trials] == [t.value for t in study.trials]  # identical, not close
+    for n, (a, b) in enumerate(zip(records, resumed_records)):
+        assert b["status"] == "completed" and a["results"] == b["results"]
+        overrides = yaml.safe_load((tmp_path / "cut" / str(n) / ".hydra" / "overrides.yaml").read_text())
+        assert overrides == b["overrides"]  # each trial's directory holds the config of the run it recorded
+
+
 @pytest.mark.slow  # by default: test_tuned.py's hybrid search (same TPE, same val/loss) with poisoned labels
 def test_a_hybrid_search_never_reads_labels(tmp_path):
     script = tmp_path / "poisoned.py"
