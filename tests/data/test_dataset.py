@@ -9,6 +9,7 @@ from hybrid_sysid.data import DatasetSpec, generate_dataset, get_dataset, split_
 from hybrid_sysid.data import cache as dataset_mod
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.physics.sensors import SensorFaults
 
 SMALL = DatasetSpec(n_roads=5, n_masses=4, n_steps=300, road_classes=("A", "C", "E"), seed=3)
 
@@ -101,19 +102,39 @@ def test_cache_loads_instead_of_simulating(tmp_path, monkeypatch, small):
         np.testing.assert_array_equal(getattr(second, name), getattr(first, name))
 
 
-@pytest.mark.parametrize(
-    "change",
-    [
-        dict(dt=0.004),
-        dict(seed=9),
-        dict(measurement="paper"),
-        dict(n_waves=200),
-        dict(road_classes=("B",)),
-        dict(car=QuarterCar(c3=600.0)),
-    ],
-)
-def test_cache_key_changes_with_every_value_that_changes_the_data(change):
-    assert DatasetSpec(**{**SMALL.__dict__, **change}).key() != SMALL.key()
+# one changed value for every field of DatasetSpec, each car constant and each sensor fault
+CHANGES = {
+    "n_roads": 6,
+    "n_masses": 5,
+    "n_steps": 301,
+    "dt": 0.004,
+    "speed": 12.0,
+    "n_waves": 200,
+    "road_classes": ("B",),
+    "m3_min": 60,
+    "m3_max": 190,
+    "measurement": "paper",
+    "seed": 9,
+    "seat_spread": 0.1,
+    **{f"car.{name}": value * 1.1 + 0.01 for name, value in dataclasses.asdict(QuarterCar()).items()},
+    "sensor.gain_spread": 0.05,
+    "sensor.skew_max": 0.01,
+    "sensor.lowpass_hz": 10.0,
+    "sensor.lowpass_range_hz": [5.0, 20.0],
+}
+
+
+def test_cache_key_changes_with_every_value_that_changes_the_data():
+    nested = {"car": QuarterCar, "sensor": SensorFaults}
+    every = [f.name for f in dataclasses.fields(DatasetSpec) if f.name not in nested]
+    every += [f"{group}.{f.name}" for group, cls in nested.items() for f in dataclasses.fields(cls)]
+    assert sorted(CHANGES) == sorted(every)  # a new field gets its line here
+    for name, value in CHANGES.items():
+        group, _, key = name.rpartition(".")
+        if group:  # a constant of the car or a fault of the sensors
+            value = dataclasses.replace(getattr(SMALL, group), **{key: value})
+        changed = dataclasses.replace(SMALL, **{group or key: value})
+        assert changed != SMALL and changed.key() != SMALL.key(), name
 
 
 def test_interrupted_write_leaves_nothing_loadable(tmp_path, monkeypatch):
