@@ -100,6 +100,7 @@ def test_latex_and_compare_options(tmp_path, capsys):
     [
         ("split=nonsense", "split = 'nonsense' is not allowed: one of train, val, test"),
         ("spilt=val", "spilt is not allowed: a key one of split, metric"),
+        ("metric=nonsense", "metric = 'nonsense' is not allowed: one of mean_rel_dev, std_rel_dev"),
         ("latex=maybe", "latex = 'maybe' is not allowed: true or false"),
         ("--nonsense", "--nonsense is not allowed: key=value without dashes"),
     ],
@@ -115,7 +116,8 @@ def test_dashed_flags_are_refused_with_the_key_value_form(tmp_path, capsys):
     """The former --key value flags are gone: each is one line naming the key=value form."""
     a = make_sweep(tmp_path / "a", failed=False)
     assert main([str(a), "--split", "val", f"out={tmp_path / 'flags'}"]) == 2
-    assert "--split is not allowed: key=value without dashes (split=VALUE)" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "--split is not allowed: key=value without dashes (split=VALUE)" in err
     assert not (tmp_path / "flags").exists()
 
 
