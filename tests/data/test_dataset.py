@@ -49,6 +49,12 @@ def test_same_spec_same_data_other_seed_other_data(small):
     assert not np.allclose(other.seat_acc, small.seat_acc)
 
 
+def test_the_data_depend_on_data_seed_not_on_the_training_seed(make_cfg):
+    spec = DatasetSpec.from_config(make_cfg())
+    assert DatasetSpec.from_config(make_cfg("seed=7")) == spec  # every training seed sees the same data
+    assert DatasetSpec.from_config(make_cfg("data.seed=7")) != spec
+
+
 def test_split_by_road_never_shares_a_road():
     split = split_by_road(100, 100, 0.8, 0.125)
     road = lambda idx: set(idx // 100)  # noqa: E731
