@@ -3,8 +3,9 @@
 
 The preflight is a Hydra callback that checks what needs no work before Hydra creates a directory (Hydra writes
 .hydra/ there first): a single job's own checks (``check``, which each command's subclass gives) and no completed
-run of other overrides in its run directory; a re-run sweep's overrides against those its directory was made
-with. A refusal is one line and exit status 2 (a callback's exception would only be a warning to Hydra).
+run of other overrides in its run directory; a sweep's packages for every swept choice, and a re-run sweep against
+the one its directory was made by (runs.sweepdir). A refusal is one line and exit status 2 (a callback's exception
+would only be a warning to Hydra).
 
 A job records its own failure or interruption in its run directory (Hydra skips ``on_multirun_end`` when a job
 raises), so a sweep goes on and its summary lists the job. Exit statuses: hybrid_sysid.cli.process.
@@ -27,9 +28,9 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
 from hybrid_sysid.cli.console import job_running, quiet_libraries
 from hybrid_sysid.cli.orphans import exit_with_parent, job_in_progress
-from hybrid_sysid.cli.process import PROCESS, SIGNALS, fail, interruptible, stop_sweep
+from hybrid_sysid.cli.process import PROCESS, SIGNALS, fail, interruptible, missing_extra_of_sweep, stop_sweep
 from hybrid_sysid.core import ranks, stop
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.runs import locks
 from hybrid_sysid.runs.layout import STOP_MARKER
@@ -140,7 +141,10 @@ SLURM_LAUNCHER = "hydra_plugins.hybrid_sysid_slurm.SlurmLauncher"  # conf/launch
 
 
 class Preflight(Callback):
-    """The checks of a job before Hydra makes its directory (the module's docstring)."""
+    """The checks of a job before Hydra makes its directory (the module's docstring). ``saves_task_config``: the
+    job's saved config is the one Hydra composed (a training run's; an evaluation saves the evaluated run's)."""
+
+    saves_task_config = False
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         """The command's checks of a single job's config (without Hydra's section); raise ConfigError."""
@@ -158,12 +162,17 @@ class Preflight(Callback):
         self.check(task_config(config), overrides)
         make_dir(run_dir, "hydra.run.dir")
         locks.hold(run_dir, "hydra.run.dir")  # before Hydra writes .hydra/ there: one writer per directory
-        RunDir(run_dir).previous_record(overrides)  # a completed run of other overrides
+        done = RunDir(run_dir).previous_record(overrides)  # a completed run of other overrides: refused
+        if done is not None and self.saves_task_config:
+            same_config(RunDir(run_dir), config)
         if not ranks.is_global_zero():
             writes_nothing(config)
 
     def _multirun_start(self, config: DictConfig) -> None:
         sweep_dir = PROCESS.sweep_dir = Path(str(config.hydra.sweep.dir))
+        missing = missing_extra_of_sweep(config)  # a swept choice's package: one line, not every job failing
+        if missing:
+            fail(missing)
         if is_search(config):  # a search: its space and settings before any trial
             from hybrid_sysid.experiments.search import study_settings
 
@@ -174,19 +183,8 @@ class Preflight(Callback):
             check_request(config.hydra.launcher)
         make_dir(sweep_dir, "hydra.sweep.dir")
         locks.hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
+        SweepDir(sweep_dir).check_rerun(config)  # a re-run is the same sweep, or nothing is touched
         (sweep_dir / STOP_MARKER).unlink(missing_ok=True)  # a re-run continues an interrupted sweep
-        was = SweepDir(sweep_dir).saved_config()
-        if was is None:  # none yet, or unreadable: the jobs' own guards still hold
-            return
-        try:
-            differs = _sweep_of(was) != _sweep_of(config)
-        except Exception:  # noqa: BLE001 - a file without Hydra's keys cannot tell either
-            return
-        if differs:
-            fail(
-                f"hydra.sweep.dir = {sweep_dir} holds a sweep of other overrides ({' '.join(_sweep_of(was)[0])}); "
-                "re-run it with the same ones, or choose another hydra.sweep.dir"
-            )
 
 
 @contextmanager
@@ -203,6 +201,27 @@ def checks_complete():
         fail(f"the checks before the job could not complete: {type(exc).__name__}: {' '.join(str(exc).split())}")
 
 
+def same_config(run: RunDir, config: DictConfig) -> None:
+    """A completed run of the same overrides is skipped (Hydra saves nothing over it: config/resolvers.py's
+    hydra_subdir); made with another config (a file of the user's --config-dir changed), it is refused, since its
+    record does not hold what this command asks. A saved config that cannot be read tells nothing: skipped."""
+    from hybrid_sysid.runs.sweepdir import first_difference
+
+    saved = run.saved_values()
+    if not saved:
+        return
+    now = OmegaConf.to_container(task_config(config), resolve=False)
+    change = first_difference(*({k: v for k, v in c.items() if k != "resume"} for c in (saved, now)))
+    if change is not None:
+        key, there, here = change
+        bad(
+            "hydra.run.dir",
+            Shown(str(run.path)),
+            f"it holds a completed run made with another config ({key}: {there} there, {here} here; a config file "
+            "changed); choose another hydra.run.dir",
+        )
+
+
 def writes_nothing(config: DictConfig) -> None:
     """A DDP rank above global rank 0 shares rank 0's run directory (on a shared file system, from another node
     too): Hydra writes neither its .hydra/ nor the rank's log file there. Its messages still reach its console."""
@@ -216,12 +235,6 @@ def writes_nothing(config: DictConfig) -> None:
 def is_search(config: DictConfig) -> bool:
     """Whether the sweep is a hyperparameter search (the study sweeper, hybrid_sysid.cli.search)."""
     return str(config.hydra.sweeper.get("_target_", "")) == SEARCH_SWEEPER
-
-
-def _sweep_of(cfg: DictConfig) -> tuple:
-    """What makes a sweep's jobs: its command-line overrides and the sweeper's parameters (an experiment's)."""
-    params = cfg.hydra.sweeper.get("params")
-    return sorted(cfg.hydra.overrides.task), OmegaConf.to_container(params) if params is not None else {}
 
 
 def make_dir(path: Path, key: str) -> None:

@@ -28,8 +28,11 @@ from hybrid_sysid.runs.layout import STOP_MARKER
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
 
 
-# an option that needs an optional package -> (the module it needs, the extra that brings it)
+# an option that needs an optional package -> (the module it needs, or modules any one of which will do, and the
+# extra that brings it)
 EXTRAS = {
+    "logger=mlflow": ("mlflow", "loggers"),
+    "logger=tensorboard": (("tensorboard", "tensorboardX"), "loggers"),
     "hparams_search=": ("optuna", "search"),
     "hydra/sweeper=study": ("optuna", "search"),
     "experiment=tuned": ("optuna", "search"),
@@ -45,10 +48,43 @@ def missing_extra(args) -> str | None:
     own install: ``pip install -e ".[search]"`` in an editable checkout, ``pip install "hybrid-sysid[search]"``
     for a wheel (hybrid_sysid.core.install)."""
     for arg in args:
-        for prefix, (module, extra) in EXTRAS.items():
-            if arg.lstrip("+~").startswith(prefix) and not installed(module):
-                name = module.split(".")[-1].replace("_", "-")
+        for prefix, (modules, extra) in EXTRAS.items():
+            modules = (modules,) if isinstance(modules, str) else modules
+            if arg.lstrip("+~").startswith(prefix) and not any(installed(m) for m in modules):
+                name = modules[0].split(".")[-1].replace("_", "-")
                 return f"{arg} needs {name}, which is not installed: {install_command(extra)}"
+    return None
+
+
+def missing_extra_of_sweep(config) -> str | None:
+    """``missing_extra`` for every value of a swept choice (``logger=csv,mlflow`` is ``logger=csv`` and
+    ``logger=mlflow``), and the packages of the loggers and callbacks the sweep's config holds where those groups
+    are not swept: so a sweep missing one is one line before any job starts, not every job failing."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from hybrid_sysid.config.validation import validate_callbacks, validate_loggers
+
+    args, swept = [], set()
+    for override in OverridesParser.create().parse_overrides(list(config.hydra.overrides.task)):
+        key = override.get_key_element()
+        if not override.is_sweep_override():
+            args.append(override.input_line)
+            continue
+        swept.add(key.lstrip("+~").split("@")[0])
+        try:
+            args += [f"{key}={value}" for value in override.sweep_string_iterator()]
+        except Exception:  # noqa: BLE001 - a range or interval of numbers: no choice of a package there
+            continue
+    missing = missing_extra(args)
+    if missing:
+        return missing
+    task = {k: v for k, v in config.items() if k != "hydra"}
+    for group, check in (("logger", validate_loggers), ("callbacks", validate_callbacks)):
+        if group not in swept:  # a swept group's default, which no job uses, is not checked
+            try:
+                check(task)
+            except ValueError as exc:
+                return str(exc)
     return None
 
 
@@ -66,10 +102,11 @@ class CommandProcess:
 
     sweep_dir: Path | None = None
     job_started: bool = False
+    summarised: bool = False  # the sweep's end (cli.sweep) has run: no summary is written here after it
 
     def reset(self) -> None:
         """As a new process starts (a test that runs several commands in one process)."""
-        self.sweep_dir, self.job_started = None, False
+        self.sweep_dir, self.job_started, self.summarised = None, False, False
         stop.reset()
 
 
@@ -110,10 +147,25 @@ def children() -> list[int]:
     return found
 
 
+def catches_sigterm(pid: int) -> bool:
+    """Whether the process has a handler of its own for SIGTERM (/proc's SigCgt mask): a parallel worker has one
+    from its first job on (``run_job``), not while it still starts up and imports."""
+    try:
+        for line in Path(f"/proc/{pid}/status").read_text().splitlines():
+            if line.startswith("SigCgt:"):
+                return bool(int(line.split()[1], 16) >> (signal.SIGTERM - 1) & 1)
+    except (OSError, ValueError, IndexError):
+        pass
+    return False
+
+
 def stop_sweep(signum, frame):
     """The handler of a process between jobs (a sweep's parent, a parallel worker): remember the signal, mark the
     sweep as interrupted so jobs not yet started skip, and pass the signal to the running jobs (parallel workers),
-    which record their interruption and return; Hydra then ends the sweep with its summary."""
+    which record their interruption and return; Hydra then ends the sweep with its summary. A worker still
+    starting up gets no signal, which would kill it (joblib would then break off the sweep with a traceback and
+    no job record): it finds the mark at its first job, which records its interruption without running. The mark
+    is made first, so a worker is either signalled or finds it."""
     first = stop.received() is None
     stop.note(signum)
     sweep_dir = PROCESS.sweep_dir
@@ -121,6 +173,8 @@ def stop_sweep(signum, frame):
         (sweep_dir / STOP_MARKER).touch()
     if first:
         for pid in children():
+            if not catches_sigterm(pid):
+                continue
             try:
                 os.kill(pid, signum)
             except OSError:
@@ -143,7 +197,7 @@ def _summarise_interrupted_sweep() -> None:
     """When a parallel sweep's launcher itself broke off (a worker killed by the signal), the summary of the
     jobs that completed, written here since Hydra's end-of-sweep callback did not run."""
     sweep_dir = PROCESS.sweep_dir
-    if sweep_dir is None or not sweep_dir.is_dir():
+    if sweep_dir is None or not sweep_dir.is_dir() or PROCESS.summarised:
         return
     try:
         from hybrid_sysid.report.summary import write_summary
@@ -172,6 +226,7 @@ def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
             sys.exit(2)
         if stop.received() is None:
             raise
+        _summarise_interrupted_sweep()  # unless the sweep's end wrote it: Hydra broke off before (a worker killed)
     except OSError as exc:
         if PROCESS.job_started or os.environ.get("HYDRA_FULL_ERROR") == "1":
             raise

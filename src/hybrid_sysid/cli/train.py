@@ -32,6 +32,8 @@ log = logging.getLogger("hybrid_sysid")
 class TrainPreflight(Preflight):
     """Preflight (hybrid_sysid.cli.job) that also checks the config's values and its ``resume=`` directory."""
 
+    saves_task_config = True
+
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
         if cfg.get("init_from"):  # its weights must fit and load, before a directory exists

@@ -1,4 +1,5 @@
-"""A sweep directory: Hydra's record of the sweep (multirun.yaml) read as a config or as plain data."""
+"""A sweep directory: Hydra's record of the sweep (multirun.yaml) read as a config or as plain data, and whether a
+command may run into it again (``check_rerun``)."""
 
 from __future__ import annotations
 
@@ -6,9 +7,12 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.runs import layout
 from hybrid_sysid.runs.rundir import load_config, read_yaml
+
+KEY = "hydra.sweep.dir"
 
 
 class SweepDir:
@@ -23,7 +27,7 @@ class SweepDir:
         """multirun.yaml as a config; None when it is absent or cannot be read."""
         try:
             cfg = load_config(self.config_file)
-        except Exception:  # noqa: BLE001 - absent or damaged: the sweep's own guards still hold
+        except Exception:  # noqa: BLE001 - absent or damaged: the caller decides what that means
             return None
         return cfg if isinstance(cfg, DictConfig) else None
 
@@ -34,6 +38,74 @@ class SweepDir:
 
     def write_config(self, cfg: DictConfig) -> None:
         write_atomic(self.config_file, lambda p: OmegaConf.save(cfg, p))
+
+    def holds_runs(self) -> bool:
+        """Whether a job of an earlier sweep wrote here: a record or a saved config at any depth (a run of
+        experiment=tuned sits two levels below its job)."""
+        return any(self.path.rglob(layout.RECORD)) or any(self.path.rglob(".hydra"))
+
+    def check_rerun(self, config: DictConfig) -> None:
+        """A sweep run again into this directory must be the sweep that made it: the same command-line overrides,
+        the same sweeper parameters and the same composed config (a file of the user's --config-dir may have
+        changed). Without a readable multirun.yaml, a directory holding runs cannot be told to be the same sweep,
+        whatever the command: each job's directory would get another sweep's .hydra/. ConfigError otherwise."""
+        if not self.path.is_dir():
+            return
+        saved = self.saved_values()
+        hydra = saved.get("hydra")
+        if not isinstance(hydra, dict) or not isinstance((hydra.get("overrides") or {}).get("task"), list):
+            if self.holds_runs():
+                bad(
+                    KEY,
+                    Shown(str(self.path)),
+                    f"it holds runs but its {layout.SWEEP_CONFIG} is missing or damaged, so this command cannot be "
+                    f"told to be the sweep that made them; choose another {KEY}",
+                )
+            return
+        was = _sweep_of(saved)
+        now = _sweep_of(OmegaConf.to_container(config, resolve=False))
+        if was != now:
+            bad(
+                KEY,
+                Shown(str(self.path)),
+                f"it holds a sweep of other overrides ({' '.join(was[0])}); re-run it with the same ones, or choose "
+                f"another {KEY}",
+            )
+        change = first_difference(_task(saved), _task(OmegaConf.to_container(config, resolve=False)))
+        if change is not None:
+            key, there, here = change
+            bad(
+                KEY,
+                Shown(str(self.path)),
+                f"it holds a sweep made with another config ({key}: {there} there, {here} here; a config file "
+                f"changed); choose another {KEY}",
+            )
+
+
+def _sweep_of(values: dict) -> tuple:
+    """What makes a sweep's jobs: its command-line overrides and the sweeper's parameters (an experiment's)."""
+    hydra = values.get("hydra") or {}
+    params = (hydra.get("sweeper") or {}).get("params")
+    return sorted(str(o) for o in hydra["overrides"]["task"]), params or {}
+
+
+def _task(values: dict) -> dict:
+    """The config the jobs are composed from, without Hydra's section."""
+    return {k: v for k, v in values.items() if k != "hydra"}
+
+
+def first_difference(there, here, key: str = ""):
+    """The first key whose value differs between two plain configs, as (key, there, here); None when equal."""
+    if isinstance(there, dict) and isinstance(here, dict):
+        for k in sorted(set(there) | set(here), key=str):
+            sub = f"{key}.{k}" if key else str(k)
+            if k not in there or k not in here:
+                return sub, there.get(k, "(absent)"), here.get(k, "(absent)")
+            found = first_difference(there[k], here[k], sub)
+            if found is not None:
+                return found
+        return None
+    return None if there == here else (key, there, here)
 
 
 def sweep_dir_of(run_dir: Path) -> Path | None:
