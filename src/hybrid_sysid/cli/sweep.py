@@ -27,6 +27,7 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
+from hybrid_sysid.cli.process import PROCESS
 from hybrid_sysid.cli.progress import count_done, job_line, start_line, sweep_jobs
 from hybrid_sysid.runs.layout import PROGRESS
 
@@ -97,6 +98,7 @@ class SweepSummary(Callback):
     def on_multirun_end(self, config: DictConfig, **kwargs: Any) -> None:
         # imported here: every parallel worker unpickles this callback for on_job_end and needs none of them; the
         # loading thread is done first, so no module is imported by two threads at once
+        PROCESS.summarised = True  # written here or failing here: the process writes no other summary after
         if self._preload is not None:
             thread, cancel = self._preload
             self._preload = None
