@@ -32,6 +32,24 @@ def test_a_bad_space_or_budget_is_one_named_error(make_cfg, params, n_trials, ma
         check_search(make_cfg(), params, n_trials)
 
 
+@pytest.mark.parametrize(
+    "change, match",
+    [
+        ({"n_jobs": 0}, r"hydra.sweeper.n_jobs = 0 is not allowed: must be an integer >= 1"),
+        ({"direction": "up"}, r"hydra.sweeper.direction = 'up' is not allowed: one of minimize, maximize"),
+        ({"sampler": {"nope": 1}}, r"hydra.sweeper.sampler.nope = 1 is not allowed: a setting of the TPE sampler"),
+        ({"sampler": {"seed": 0.5}}, r"hydra.sweeper.sampler.seed = 0.5 is not allowed: an integer, or null"),
+    ],
+)
+def test_a_bad_parallelism_direction_or_sampler_is_one_named_error(make_cfg, change, match):
+    from hybrid_sysid.experiments.search import study_settings
+
+    settings = {"params": GOOD, "n_trials": 3, "n_jobs": 2, "direction": "minimize", "sampler": {"seed": 1}}
+    study_settings(make_cfg(), settings, [])  # the settings as they are pass
+    with pytest.raises(ConfigError, match=match):
+        study_settings(make_cfg(), {**settings, **change}, [])
+
+
 def test_a_good_space_is_the_search_space(make_cfg):
     assert check_search(make_cfg(), GOOD, 3) == search_space(GOOD)
 
@@ -89,6 +107,7 @@ def test_a_stored_study_of_another_search_is_refused_in_one_line(make_cfg, tmp_p
     for sweep_dir, arguments, what in [
         (tmp_path / "b", ["objective=hybrid"], "of the search in"),
         (tmp_path / "a", ["objective=labelled"], "of other overrides or another space"),
+        (tmp_path / "a", ["objective=hybrid", "model.net.kernel_size=5,7"], "of other overrides or another space"),
     ]:
         with pytest.raises(SystemExit) as exit_:
             _own(study, sweep_dir, study_settings(make_cfg(), settings, arguments))
