@@ -53,7 +53,7 @@ def test_the_space_is_the_presets_text_as_optuna_distributions():
         search_space({"a": "range(1,4)"})
 
 
-def test_defaults_outside_the_space_are_one_named_error(make_cfg):
+def test_defaults_outside_the_space_are_one_named_error(make_cfg, tmp_path):
     space = search_space(preset("hparams_search", "fast_cnn", "test").hydra.sweeper.params)
     cfg = make_cfg("experiment=tuned")
     assert defaults_in(cfg, space)["model.net.channels"] == cfg.model.net.channels
@@ -62,8 +62,12 @@ def test_defaults_outside_the_space_are_one_named_error(make_cfg):
         match=r"model.net.channels = 64 is not allowed: a value inside the search's space with experiment=tuned",
     ):
         defaults_in(make_cfg("experiment=tuned", "model.net.channels=64"), space)
+    # a job refuses them before its first trial: nothing made
+    with pytest.raises(ConfigError, match=r"model.net.channels = 64 is not allowed"):
+        run_tuned(make_cfg(*TINY, "model.net.channels=64"), tmp_path / "job")
     with pytest.raises(ConfigError, match=r"tuned.n_trials = 0 is not allowed: must be an integer >= 1"):
-        run_tuned(make_cfg(*TINY, "tuned.n_trials=0"), "unused")
+        run_tuned(make_cfg(*TINY, "tuned.n_trials=0"), tmp_path / "job")
+    assert not (tmp_path / "job").exists()
 
 
 def saved(run_dir) -> dict:
