@@ -9,6 +9,7 @@ does not exist or holds no runs, or compare= naming a key that is not swept.
 from __future__ import annotations
 
 import shlex
+import signal
 import sys
 from argparse import Namespace
 from pathlib import Path
@@ -16,6 +17,7 @@ from pathlib import Path
 import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
 from hybrid_sysid.core.checks import Shown
+from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.report.collect import find_runs, load_runs
 from hybrid_sysid.report.markdown import to_markdown
@@ -102,6 +104,43 @@ def _error(message: str) -> int:
 
 
 def main(argv=None) -> int:
+    """The command. SIGTERM or SIGINT ends it with one line and 128 + the signal's number; a file being written
+    then is left as it was, its temporary file removed (the default SIGTERM left it in figures/)."""
+    caught = [s for s in (signal.SIGTERM, signal.SIGINT) if signal.getsignal(s) is not signal.SIG_IGN]
+    received: list[int] = []
+
+    def interrupt(signum, frame):
+        # raised into the report's own code (it has no safe points), so write_atomic's cleanup runs on the way
+        received.append(signum)
+        raise Interrupted(signum)
+
+    def unraisable(hook, default=sys.unraisablehook):
+        # a finaliser the signal landed in swallows the exception: the report then goes on, and still ends
+        # with the signal's status, without Python's "Exception ignored" traceback
+        if not isinstance(hook.exc_value, Interrupted):
+            default(hook)
+
+    previous = {s: signal.signal(s, interrupt) for s in caught}
+    previous_hook, sys.unraisablehook = sys.unraisablehook, unraisable
+    try:
+        status = _main(argv)
+    except Interrupted:
+        status = None
+    finally:
+        sys.unraisablehook = previous_hook
+        for s, handler in previous.items():
+            signal.signal(s, handler)
+    if received:
+        name = signal.Signals(received[0]).name
+        print(
+            f"error: {PROG} interrupted by {name}; each file it wrote is whole, the others as they were",
+            file=sys.stderr,
+        )
+        return 128 + received[0]
+    return status
+
+
+def _main(argv) -> int:
     argv = sys.argv[1:] if argv is None else [str(a) for a in argv]
     if any(a in ("-h", "--help") for a in argv):
         print(HELP, end="")
