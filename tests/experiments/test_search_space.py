@@ -72,6 +72,24 @@ def test_a_space_on_the_command_line_is_a_dimension_of_the_search(make_cfg, argu
     assert s.space[argument.split("=")[0]] == expected and s.fixed == ["objective=hybrid"]
 
 
+@pytest.mark.parametrize(
+    "argument, message",
+    [
+        ("hydra.sweeper.n_trials=0", "hydra.sweeper.n_trials = 0 is not allowed: must be an integer >= 1"),
+        ("hydra.sweeper.n_jobs=0", "hydra.sweeper.n_jobs = 0 is not allowed: must be an integer >= 1"),
+        ("model.net.channels=choice(16.5,32)", "16.5 is not of the type of model.net.channels"),
+    ],
+)
+def test_a_refused_search_is_one_line_and_status_2_before_any_directory(tmp_path, cli_in_process, argument, message):
+    from hybrid_sysid.cli.train import main
+
+    sweep = tmp_path / "sweep"
+    args = ["hparams_search=fast_cnn", "data=tiny", argument, f"hydra.sweep.dir={sweep}"]
+    code, _, err = cli_in_process(main, *args, cwd=tmp_path)
+    assert code == 2 and err.startswith("error: ") and err.count("\n") == 1 and message in err, err[-2000:]
+    assert not sweep.exists() and list(tmp_path.iterdir()) == []
+
+
 @pytest.mark.integration
 @pytest.mark.slow  # the check itself is tested in process above; this one, the preflight's call, from a shell
 def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
