@@ -217,8 +217,8 @@ def same_config(run: RunDir, config: DictConfig) -> None:
         bad(
             "hydra.run.dir",
             Shown(str(run.path)),
-            f"it holds a completed run made with another config ({key}: {there} there, {here} here; a config file "
-            "changed); choose another hydra.run.dir",
+            f"it holds a completed run made with another config ({key}: {there} there, {here} here: a config file "
+            "changed, or the run's saved one is damaged); choose another hydra.run.dir",
         )
 
 

@@ -77,8 +77,8 @@ class SweepDir:
             bad(
                 KEY,
                 Shown(str(self.path)),
-                f"it holds a sweep made with another config ({key}: {there} there, {here} here; a config file "
-                f"changed); choose another {KEY}",
+                f"it holds a sweep made with another config ({key}: {there} there, {here} here: a config file "
+                f"changed, or its {layout.SWEEP_CONFIG} is damaged); choose another {KEY}",
             )
 
 
