@@ -46,6 +46,27 @@ def test_report_on_a_sweep_with_an_interrupted_job_writes_everything_and_returns
     assert main([str(sweep / "0")]) == 0  # a completed run alone: the interrupted one made the 1
 
 
+def test_a_runs_damaged_curves_predictions_and_figures_are_skipped_and_the_run_reported(tiny_run, tmp_path, capsys):
+    import shutil
+
+    runs = {name: shutil.copytree(tiny_run, tmp_path / name / "run") for name in ("whole", "damaged")}
+    damaged = runs["damaged"]
+    curves = (damaged / "curves.csv").read_bytes()
+    (damaged / "curves.csv").write_bytes(curves[: len(curves) // 2] + b"\x00\xff,,\n")  # cut mid-line, garbage
+    (damaged / "predictions.csv").write_bytes(b"\x89PNG not a table\x00\xff")
+    (damaged / "figures").mkdir(exist_ok=True)
+    (damaged / "figures" / "test_predictions.png").write_bytes(b"half a png")
+    tables = {}
+    for name, run in runs.items():
+        assert main([run, f"out={tmp_path / name / 'report'}"]) == 0
+        out, err = capsys.readouterr()
+        assert "Traceback" not in err and "1 runs, 0 failed or unreadable" in err
+        tables[name] = (out, pd.read_csv(tmp_path / name / "report" / "summary.csv"))
+    # the run is reported from its record, as the undamaged copy is
+    assert tables["damaged"][0] == tables["whole"][0]
+    pd.testing.assert_frame_equal(tables["damaged"][1], tables["whole"][1])
+
+
 def test_report_merges_sweeps_into_report_dir_and_returns_0(tmp_path, monkeypatch, capsys):
     a = make_sweep(tmp_path / "a", failed=False)
     b = make_sweep(tmp_path / "b", failed=False, extra=("road=C",))
