@@ -133,3 +133,17 @@ def test_output_is_never_put_in_a_links_or_a_fifos_place(tmp_path, capsys, kind)
     assert "it is a symbolic link, FIFO or device" in err
     assert output.is_symlink() if kind != "fifo" else output.is_fifo()
     assert kind == "fifo" or (tmp_path / "table.csv").read_text() == "kept\n"
+
+
+def test_a_received_config_asking_for_a_huge_network_is_refused_before_it_is_built(tiny_run, tmp_path):
+    # 200,000 channels: 1.4 TB of weights, which the checks would build for real; the checkpoint holds 32
+    from hybrid_sysid import load_estimator
+
+    run = tmp_path / "run"
+    shutil.copytree(tiny_run, run, ignore=shutil.ignore_patterns("*.lock"))
+    config = run / ".hydra" / "config.yaml"
+    text = config.read_text()
+    assert "\n    channels: 32\n" in text
+    config.write_text(text.replace("\n    channels: 32\n", "\n    channels: 200000\n"))
+    with pytest.raises(InputError, match=r"fits its model.net .*: net\.\S+ is \(32, .*\) there, \(200000, "):
+        load_estimator(run)

@@ -28,15 +28,19 @@ def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estima
     flag run_error)."""
     run = RunDir(run_dir)
     cfg = _as_input(run, run.saved_config)
+    is_baseline = _as_input(run, lambda: OmegaConf.select(cfg, "baseline", default=None)) is not None
+    if not is_baseline:  # the checks below build the network: its size must first be the checkpoint's
+        path, state = _as_input(run, run.load_weights, "run", checkpoint)
+        _sizes_fit(cfg, run, path, state)
     _checked(run, cfg)
     try:
         record = run.record()
     except ConfigError:  # unreadable: the run's test error is then unknown (the flag run_error says so)
         record = None
-    if OmegaConf.select(cfg, "baseline", default=None) is not None:
+    if is_baseline:
         net, baseline = None, _as_input(run, build_baseline, cfg)
     else:
-        net, baseline = _network(cfg, run, checkpoint), None
+        net, baseline = _network(cfg, run, path, state), None
     try:
         return Estimator(net, cfg, baseline=baseline, record=record)
     except Exception as exc:  # noqa: BLE001 - the data section, read for the trained range, lacks or mistypes keys
@@ -55,10 +59,10 @@ def _checked(run: RunDir, cfg: DictConfig) -> None:
         raise InputError("run", Shown(str(run.path)), f"a run whose {CONFIG} can be read ({_one_line(exc)})") from None
 
 
-def _network(cfg: DictConfig, run: RunDir, checkpoint) -> torch.nn.Module:
-    """The run's network with the checkpoint's weights, built by the code that trained it."""
+def _network(cfg: DictConfig, run: RunDir, path: Path, state: dict) -> torch.nn.Module:
+    """The run's network with the checkpoint's weights (``state``, read from ``path``), built by the code that
+    trained it."""
     model = _as_input(run, build_model, cfg)  # a class the config names is checked before anything is imported
-    path, state = _as_input(run, run.load_weights, "run", checkpoint)
     try:
         model.load_state_dict(state)  # keys "net." and "objective.", as the LightningModule saved them
     except RuntimeError as exc:  # another run's checkpoint: torch lists every mismatched key, one line each
@@ -69,6 +73,28 @@ def _network(cfg: DictConfig, run: RunDir, checkpoint) -> torch.nn.Module:
             f"{str(exc).splitlines()[0]}",
         ) from None
     return model.net
+
+
+def _sizes_fit(cfg: DictConfig, run: RunDir, path: Path, state: dict) -> None:
+    """The network the config describes, built without memory (torch's meta device), has the checkpoint's tensor
+    shapes: a received config asking for 200,000 channels is refused here, before it is built for real (1.4 TB).
+    Its real size is then bounded by the checkpoint file's."""
+    try:
+        with torch.device("meta"):
+            meta = build_model(cfg)
+    except Exception:  # noqa: BLE001 - a config the checks refuse (they name it), a builder needing real tensors
+        return
+    want = {k: tuple(v.shape) for k, v in meta.state_dict().items()}
+    have = {k: tuple(v.shape) for k, v in state.items() if isinstance(v, torch.Tensor)}
+    differ = sorted(k for k in want.keys() | have.keys() if want.get(k) != have.get(k))
+    if differ:
+        k = differ[0]
+        raise InputError(
+            "run",
+            Shown(str(run.path)),
+            f"a run whose {path.relative_to(run.path)} fits its model.net ({cfg.model.net._target_}): {k} is "
+            f"{have.get(k, 'missing')} there, {want.get(k, 'missing')} in the config ({len(differ)} tensors differ)",
+        )
 
 
 def _as_input(run: RunDir, fn, *args):
