@@ -170,7 +170,8 @@ class Preflight(Callback):
 
     def _multirun_start(self, config: DictConfig) -> None:
         sweep_dir = PROCESS.sweep_dir = Path(str(config.hydra.sweep.dir))
-        missing = missing_extra_of_sweep(config)  # a swept choice's package: one line, not every job failing
+        # a swept choice's package: one line here, not every job failing
+        missing = missing_extra_of_sweep(config.hydra.overrides.task, task_config(config))
         if missing:
             fail(missing)
         if is_search(config):  # a search: its space and settings before any trial

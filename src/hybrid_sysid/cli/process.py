@@ -56,16 +56,17 @@ def missing_extra(args) -> str | None:
     return None
 
 
-def missing_extra_of_sweep(config) -> str | None:
-    """``missing_extra`` for every value of a swept choice (``logger=csv,mlflow`` is ``logger=csv`` and
-    ``logger=mlflow``), and the packages of the loggers and callbacks the sweep's config holds where those groups
-    are not swept: so a sweep missing one is one line before any job starts, not every job failing."""
+def missing_extra_of_sweep(overrides, task) -> str | None:
+    """``missing_extra`` for every value of a swept choice among the sweep's command-line ``overrides``
+    (``logger=csv,mlflow`` is ``logger=csv`` and ``logger=mlflow``), and the packages of the loggers and callbacks
+    its config ``task`` (without Hydra's section) holds where those groups are not swept: so a sweep missing one
+    is one line before any job starts, not every job failing."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
     from hybrid_sysid.config.validation import validate_callbacks, validate_loggers
 
     args, swept = [], set()
-    for override in OverridesParser.create().parse_overrides(list(config.hydra.overrides.task)):
+    for override in OverridesParser.create().parse_overrides(list(overrides)):
         key = override.get_key_element()
         if not override.is_sweep_override():
             args.append(override.input_line)
@@ -78,7 +79,6 @@ def missing_extra_of_sweep(config) -> str | None:
     missing = missing_extra(args)
     if missing:
         return missing
-    task = {k: v for k, v in config.items() if k != "hydra"}
     for group, check in (("logger", validate_loggers), ("callbacks", validate_callbacks)):
         if group not in swept:  # a swept group's default, which no job uses, is not checked
             try:
