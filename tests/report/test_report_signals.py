@@ -34,3 +34,36 @@ def test_a_sigterm_while_a_figure_is_written_is_one_line_and_leaves_no_temporary
     figures = sweep / "figures"
     assert not [p.name for p in figures.iterdir() if p.name.endswith(".tmp")]
     assert not (figures / "robustness.png").exists()  # the figure under way, never half there
+
+
+def test_a_report_into_a_sweep_another_process_is_writing_is_refused(tmp_path, capsys):
+    """A sweep still running holds its directory; a report there would write a table of its first jobs, racing
+    with (or replacing) the sweep's own summary. It is refused in one line, nothing written; once the writer has
+    ended, the same report writes."""
+    from hybrid_sysid.cli.report import main
+    from hybrid_sysid.runs.layout import WRITER_LOCK
+
+    sweep = make_sweep(tmp_path / "sweep", failed=False)
+    (sweep / WRITER_LOCK).touch()  # the lock file every run and sweep directory holds
+    holder = subprocess.Popen([sys.executable, "-c", HOLD, str(sweep / WRITER_LOCK)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        assert main([str(sweep)]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and "another process is writing there" in err
+        assert not (sweep / "summary.md").exists() and not (sweep / "figures").exists()
+    finally:
+        holder.kill()
+        holder.wait()
+    assert main([str(sweep)]) == 0 and (sweep / "summary.md").is_file()
+
+
+# another process that holds a directory's writer lock, as a running sweep does (runs/locks.py), until killed
+HOLD = """
+import sys, time
+from filelock import FileLock
+lock = FileLock(sys.argv[1], timeout=0)
+lock.acquire()
+print("held", flush=True)
+time.sleep(600)
+"""

@@ -160,10 +160,11 @@ def _main(argv) -> int:
     refused = _inside_a_run(args)
     if refused:
         return _error(refused)
-    bad = 0
+    bad, writer = 0, None
     try:
         if args.results is None or args.out is not None:
             out = args.out or (args.paths[0] if len(args.paths) == 1 else Path("report"))
+            writer = _writer_of(out, "PATH" if args.out is None else "out")
             df, table = write_summary(
                 out,
                 paths=args.paths,
@@ -211,7 +212,20 @@ def _main(argv) -> int:
         return _error(str(exc))
     except OSError as exc:  # e.g. out= on a read-only file system: the runs themselves are untouched
         return _error(f"cannot write the report: {type(exc).__name__}: {exc}")
+    finally:
+        if writer is not None:
+            writer.release()
     return 1 if bad else 0
+
+
+def _writer_of(out: Path, key: str):
+    """The one-writer lock of ``out`` when a run or sweep of hybrid-sysid writes there (its lock file is there),
+    taken for the report's own writing: a sweep still running is refused (a table of its first jobs would race
+    with its own summary, or replace it)."""
+    from hybrid_sysid.runs.layout import WRITER_LOCK
+    from hybrid_sysid.runs.locks import hold_for_writing
+
+    return hold_for_writing(out, key) if (Path(out) / WRITER_LOCK).is_file() else None
 
 
 def _inside_a_run(args) -> str | None:
