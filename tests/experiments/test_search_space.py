@@ -38,7 +38,8 @@ def test_a_bad_space_or_budget_is_one_named_error(make_cfg, params, n_trials, ma
         ({"n_jobs": 0}, r"hydra.sweeper.n_jobs = 0 is not allowed: must be an integer >= 1"),
         ({"direction": "up"}, r"hydra.sweeper.direction = 'up' is not allowed: one of minimize, maximize"),
         ({"sampler": {"nope": 1}}, r"hydra.sweeper.sampler.nope = 1 is not allowed: a setting of the TPE sampler"),
-        ({"sampler": {"seed": 0.5}}, r"hydra.sweeper.sampler.seed = 0.5 is not allowed: an integer, or null"),
+        ({"sampler": {"seed": 0.5}}, r"hydra.sweeper.sampler.seed = 0.5 is not allowed: an integer >= 0, or null"),
+        ({"sampler": {"seed": -5}}, r"hydra.sweeper.sampler.seed = -5 is not allowed: an integer >= 0, or null"),
     ],
 )
 def test_a_bad_parallelism_direction_or_sampler_is_one_named_error(make_cfg, change, match):

@@ -110,8 +110,8 @@ def check_sampler(settings, where: str = "hydra.sweeper.sampler") -> dict:
         if key not in SAMPLER_KEYS:
             bad(f"{where}.{key}", settings[key], f"a setting of the TPE sampler: {', '.join(SAMPLER_KEYS)}")
     seed = settings.get("seed")
-    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int)):
-        bad(f"{where}.seed", seed, "an integer, or null for an unseeded search")
+    if seed is not None and (isinstance(seed, bool) or not isinstance(seed, int) or seed < 0):
+        bad(f"{where}.seed", seed, "an integer >= 0, or null for an unseeded search")  # numpy's SeedSequence's
     return settings
 
 
