@@ -147,3 +147,30 @@ def test_a_received_config_asking_for_a_huge_network_is_refused_before_it_is_bui
     config.write_text(text.replace("\n    channels: 32\n", "\n    channels: 200000\n"))
     with pytest.raises(InputError, match=r"fits its model.net .*: net\.\S+ is \(32, .*\) there, \(200000, "):
         load_estimator(run)
+
+
+def test_ctrl_c_while_torch_is_imported_is_one_line_and_status_130(tmp_path, capsys, monkeypatch):
+    # the console script imports the command's module, then calls main(): torch and Lightning, seconds of import
+    # on a busy machine, must load inside main(), whose Ctrl-C is one line and exit 130, not an 80-line traceback
+    import importlib.abc
+    import subprocess
+    import sys
+
+    probe = (
+        "import sys; from hybrid_sysid.cli.predict import main; print(sorted({'torch', 'pandas'} & set(sys.modules)))"
+    )
+    assert subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout == "[]\n"
+
+    class CtrlC(importlib.abc.MetaPathFinder):
+        def find_spec(self, name, path=None, target=None):
+            if name == "hybrid_sysid.inference.loading":
+                raise KeyboardInterrupt
+            return None
+
+    monkeypatch.delitem(sys.modules, "hybrid_sysid.inference.loading", raising=False)
+    monkeypatch.setattr(sys, "meta_path", [CtrlC(), *sys.meta_path])
+    seat = np.sin(np.arange(400) * 0.1)
+    recording = npz(tmp_path / "drive.npz", seat_acc=seat, body_acc=seat, dt=DT)
+    code, out, err = predict(capsys, f"run={tmp_path / 'run'}", f"input={recording}", f"output={tmp_path / 'out.csv'}")
+    assert (code, out, err.splitlines()) == (130, "", ["hybrid-sysid-predict: interrupted (Ctrl-C)"])
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.npz"]

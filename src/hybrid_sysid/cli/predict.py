@@ -17,16 +17,16 @@ import sys
 import tempfile
 import warnings
 from pathlib import Path
-
-import pandas as pd
+from typing import TYPE_CHECKING
 
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.inference.inputs import EstimateWarning, InputError
-from hybrid_sysid.inference.loading import load_estimator
-from hybrid_sysid.inference.readers import read_input
 from hybrid_sysid.runs import layout
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 USAGE = (
     "usage: hybrid-sysid-predict run=DIR input=FILE [output=CSV] [overwrite=true|false] [windows=K] "
@@ -106,6 +106,22 @@ def write_new(path: Path, write) -> None:
             os.replace(tmp, path)
     finally:
         Path(tmp).unlink(missing_ok=True)
+
+
+# pandas, torch and Lightning take seconds to import: inside main(), where Ctrl-C meanwhile is its one line and
+# exit status 130, not a traceback from the console script's import of this module
+
+
+def read_input(path: Path, dt: float | None):
+    from hybrid_sysid.inference.readers import read_input as read
+
+    return read(path, dt)
+
+
+def load_estimator(run_dir: str):
+    from hybrid_sysid.inference.loading import load_estimator as load
+
+    return load(run_dir)
 
 
 def run(args: dict) -> pd.DataFrame:
