@@ -174,3 +174,17 @@ def test_ctrl_c_while_torch_is_imported_is_one_line_and_status_130(tmp_path, cap
     code, out, err = predict(capsys, f"run={tmp_path / 'run'}", f"input={recording}", f"output={tmp_path / 'out.csv'}")
     assert (code, out, err.splitlines()) == (130, "", ["hybrid-sysid-predict: interrupted (Ctrl-C)"])
     assert sorted(p.name for p in tmp_path.iterdir()) == ["drive.npz"]
+
+
+def test_a_constant_recording_the_network_cannot_read_is_not_called_an_overflow(est, monkeypatch):
+    # model=anchored's least-squares gate is 0 / 0 on a constant recording: its NaN is no float32 overflow
+    import torch
+
+    class ZeroOverZero(torch.nn.Module):
+        def forward(self, x):
+            return torch.where(x.std(dim=2).amax(dim=1)[:, None] == 0, torch.nan, torch.ones(len(x), 2))
+
+    monkeypatch.setattr(est, "net", ZeroOverZero())
+    with pytest.raises(InputError, match=r"^recording 0 is not allowed: a recording with the motion the network") as e:
+        est.predict(np.ones(400), np.ones(400), DT)
+    assert "overflow" not in str(e.value) and "constant or zero recording" in str(e.value)

@@ -77,15 +77,25 @@ def check_values(channel: str, x: np.ndarray, name) -> None:
         )
 
 
+# a magnitude (m/s^2) below which a non-finite estimate is no overflow: squared, it stays far inside float32
+OVERFLOW = 1e15
+
+
 def check_estimates(estimates: np.ndarray, names: list, stacked: list[np.ndarray]) -> None:
     """Estimates (recordings, K, 2) all finite: values inside float32's range may still overflow the network's
     float32 arithmetic, which then returns NaN or inf rather than an estimate."""
     for name, e, signals in zip(names, estimates, stacked):
         if not np.isfinite(e).all():
             channel = ("seat_acc", "body_acc")[int(np.argmax(np.abs(signals).max(axis=1)))]
+            got = f"the estimate is p1 = {e[:, 0].mean():g}, p2 = {e[:, 1].mean():g}"
+            if np.abs(signals).max() <= OVERFLOW:  # a constant recording gives an anchored fit 0 / 0, say
+                raise InputError(
+                    f"recording {name!r}",
+                    allowed=f"a recording with the motion the network reads ({got}: a constant or zero recording, "
+                    "or one whose seat and body do not move independently?)",
+                )
             raise InputError(
                 f"recording {name!r}",
                 allowed=f"accelerations of the magnitude the run was trained on (its values, up to "
-                f"{np.abs(signals).max():g} m/s^2 in {channel}, overflow the network's float32 arithmetic: the "
-                f"estimate is p1 = {e[:, 0].mean():g}, p2 = {e[:, 1].mean():g})",
+                f"{np.abs(signals).max():g} m/s^2 in {channel}, overflow the network's float32 arithmetic: {got})",
             )
