@@ -20,7 +20,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.files import read_json, read_yaml_text, write_atomic, write_json_atomic, write_yaml_atomic
-from hybrid_sysid.runs import layout
+from hybrid_sysid.runs import layout, locks
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -106,6 +106,19 @@ class RunDir:
             self._damaged(key, layout.RECORD, "not a mapping")
         return record
 
+    def ended_record(self, key: str = "run") -> dict | None:
+        """The record of a run no process writes any more, None when it has none (a run killed, say); ConfigError
+        naming ``key`` when another process still holds its writer lock (a run in training: its checkpoints and
+        record are not yet what it will leave) or when its record is damaged."""
+        if locks.held_elsewhere(self.path):
+            bad(
+                key,
+                Shown(str(self.path)),
+                "a run that has ended: another process is still writing it (a run in training, say); use it once "
+                "that process has ended",
+            )
+        return self.record(key)
+
     def completed_record(self) -> dict | None:
         """The record if it is readable and says completed, else None (missing, truncated, failed...)."""
         try:
@@ -168,8 +181,11 @@ class RunDir:
         if which is not None and names[0] not in layout.TRAINED:
             bad("checkpoint", which, "best or last (None: best, else last)")
         for name in names:
-            if (self.checkpoints / name).is_file():
-                return self.checkpoints / name
+            path = self.checkpoints / name
+            if path.is_file():
+                return path
+            if path.exists() or path.is_symlink():  # a FIFO, device or folder: never fall back to other weights
+                bad(key, Shown(str(self.path)), f"a run whose checkpoints/{name} is a regular file (it is not)")
         bad(
             key,
             Shown(str(self.path)),
