@@ -197,6 +197,34 @@ def test_damaged_cache_is_regenerated_with_a_warning(tmp_path, small, damage):
     np.testing.assert_array_equal(reloaded.seat_acc, small.seat_acc)
 
 
+def test_a_fifo_or_a_device_in_the_cache_files_place_is_regenerated_not_waited_on(tmp_path, small):
+    """A FIFO named as the cache file blocked the run (and the cache's lock) for ever, deaf to SIGTERM: the file
+    is no regular file, so it is regenerated with a warning, as a damaged one is."""
+    import os
+    import threading
+
+    path = dataset_mod.cache_path(SMALL, tmp_path)
+    os.mkfifo(path)
+    got = {}
+
+    def load():
+        with pytest.warns(RuntimeWarning, match="no regular file; regenerating"):
+            got["ds"] = get_dataset(SMALL, tmp_path)
+
+    reader = threading.Thread(target=load, daemon=True)
+    reader.start()
+    reader.join(120)  # far beyond the simulation of SMALL; without the check it waits for a writer for ever
+    if reader.is_alive():  # a writer opens and closes the FIFO, so the reader ends
+        os.close(os.open(path, os.O_WRONLY | os.O_NONBLOCK))
+        reader.join(10)
+    assert "ds" in got and path.is_file()
+    np.testing.assert_array_equal(got["ds"].seat_acc, small.seat_acc)
+    path.unlink()
+    path.symlink_to("/dev/zero")
+    with pytest.warns(RuntimeWarning, match="no regular file; regenerating"):
+        np.testing.assert_array_equal(get_dataset(SMALL, tmp_path).seat_acc, small.seat_acc)
+
+
 GENERATE_ONCE = """
 import sys, time
 from hybrid_sysid.data import cache as d

@@ -51,6 +51,8 @@ class CacheError(ValueError):
 
 
 def load_dataset(spec: DatasetSpec, path: Path) -> SimulatedDataset:
+    if not Path(path).is_file():  # a FIFO would block np.load for ever, deaf to SIGTERM; a device reads on
+        raise CacheError(f"cache file {path} is no regular file")
     try:
         with np.load(path, allow_pickle=False) as f:
             key, checksum = str(f["key"]), str(f["checksum"])
