@@ -106,6 +106,13 @@ def results(sweep):
     return study, records
 
 
+def dotted(config: dict, key: str):
+    """The value at a dotted key of a saved config."""
+    for part in key.split("."):
+        config = config[part]
+    return config
+
+
 def search(tmp_path, name, *args, script=None, status=0, cache=None):
     env = {**os.environ, "HYDRA_FULL_ERROR": "0"}
     cli = command(tmp_path, name, *args, script=script, cache=cache)
@@ -180,8 +187,11 @@ def test_a_search_terminated_during_a_trial_resumes_to_the_uninterrupted_trials(
     for trial, a, b, trial_dir in zip(study.trials, records, resumed_records, sorted(again.glob("[0-9]"))):
         assert b["status"] == "completed" and a["results"] == b["results"]
         assert trial.value == b["best_score"] and b["monitor"] == "val/rel_dev"  # its model-selection figure
-        # each trial's directory holds the config of the run it recorded
+        # each trial's directory holds the config of the run it recorded, with the trial's values
         assert yaml.safe_load((trial_dir / ".hydra" / "overrides.yaml").read_text()) == b["overrides"]
+        saved = yaml.safe_load((trial_dir / ".hydra" / "config.yaml").read_text())
+        for key, value in trial.params.items():
+            assert dotted(saved, key) == pytest.approx(value), key
     best = yaml.safe_load((again / "optimization_results.yaml").read_text())
     assert best["best_value"] == min(t.value for t in study.trials) and best["completed"] == 3
 
@@ -254,6 +264,8 @@ def test_a_parallel_search_terminated_during_a_trial_resumes_to_the_uninterrupte
         assert b["status"] == "completed" and a["results"] == b["results"]
         overrides = yaml.safe_load((tmp_path / "cut" / str(n) / ".hydra" / "overrides.yaml").read_text())
         assert overrides == b["overrides"]  # each trial's directory holds the config of the run it recorded
+        saved = yaml.safe_load((tmp_path / "cut" / str(n) / ".hydra" / "config.yaml").read_text())
+        assert all(dotted(saved, k) == pytest.approx(v) for k, v in resumed.trials[n].params.items())
 
 
 @pytest.mark.slow  # by default: test_tuned.py's hybrid search (same TPE, same val/loss) with poisoned labels
