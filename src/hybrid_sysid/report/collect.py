@@ -109,6 +109,10 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
         }
         overrides = _overrides(rec.get("overrides"))
         results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
+        for r in results:  # a deviation that is no number >= 0 (text, a negative) is no measurement
+            for key in ("mean_rel_dev", "std_rel_dev"):
+                if isinstance(r[key], bool) or not isinstance(r[key], (int, float)) or r[key] < 0:
+                    raise TypeError(f"{key} = {r[key]!r} in a results row: a relative deviation is a number >= 0")
     except (DamagedFile, TypeError, KeyError, AttributeError) as exc:
         # Hydra writes .hydra/overrides.yaml before a job starts, so a job whose record is corrupt still has a
         # known configuration and lands in the right row of the table
