@@ -126,11 +126,18 @@ def test_resume_accepts_a_config_saved_before_the_faults_and_the_noise_range(tmp
         check_resume(RunDir(run), make_cfg(*TINY, "sensor=skewed"))
 
 
-def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, caplog):
+def test_resume_with_an_unreadable_saved_config_goes_on(tmp_path, make_cfg, capsys):
+    """No refusal: one warning line on stderr naming the file, kept for the run's log file (the command's console
+    and train.log: tests/cli/test_run_promises.py)."""
+    from hybrid_sysid.runs.resume import uncompared
+
     run = saved_run(tmp_path, make_cfg, *TINY)
     (run / ".hydra" / "config.yaml").write_text("data: {n_roads: [")  # truncated
     check_resume(RunDir(run), make_cfg(*TINY))
-    assert "resuming without comparing" in caplog.text
+    warned = capsys.readouterr().err.splitlines()
+    assert len(warned) == 1 and warned[0].startswith(f"warning: {run / '.hydra' / 'config.yaml'} cannot be read")
+    assert warned[0].endswith("resuming without comparing the configs")
+    assert uncompared() == [warned[0].removeprefix("warning: ")] and uncompared() == []
 
 
 def test_resume_reports_a_truncated_config_that_still_parses_as_damaged(tmp_path, make_cfg):

@@ -25,7 +25,7 @@ from omegaconf.errors import OmegaConfBaseException
 from hybrid_sysid import config
 from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
-from hybrid_sysid.config import Config, validate
+from hybrid_sysid.config import Config, flatten, validate
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.options import EVAL_OVERRIDABLE
 from hybrid_sysid.runs.rundir import RunDir
@@ -55,9 +55,13 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
             f"a run whose saved config this version reads ({where}: {type(exc).__name__}; a run saved by another "
             "version of hybrid-sysid, whose keys have changed since)",
         )
-    missing = sorted(OmegaConf.missing_keys(cfg))
-    if missing:  # e.g. a file cut at a line's end: it parses, the sections after the cut are gone
-        bad("run", Shown(str(run_dir)), f"a run whose saved config is complete (no value for {', '.join(missing)})")
+    # a file cut at a line's end parses: the sections after the cut have no value, and the keys after it in a
+    # section would silently take the schema's defaults (another car, say) rather than the run's values
+    absent = sorted(OmegaConf.missing_keys(cfg))
+    absent += [k for k in lacking(base, cfg) if k.split(".")[0] not in absent]
+    if absent:
+        shown = ", ".join(absent[:4]) + (f", ... ({len(absent)} keys)" if len(absent) > 4 else "")
+        bad("run", Shown(str(run_dir)), f"a run whose saved config is complete (no value for {shown}; cut short?)")
     for key in override_keys(overrides):
         top = key.split(".")[0]
         if key == "run" or top == "hydra":
@@ -74,6 +78,18 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
             )
         OmegaConf.update(cfg, key, OmegaConf.select(composed, key), merge=False)
     return cfg
+
+
+def lacking(saved: DictConfig, cfg: DictConfig) -> list[str]:
+    """The keys of ``cfg`` (the saved config merged into the schema) that the saved file does not hold, but for
+    those whose default does what a run saved before them did (runs.resume.ADDED) and those the schema leaves
+    unset (null, {}): Hydra saves every key of the schema, so a key lacking is a file cut short."""
+    from hybrid_sysid.runs.resume import ADDED
+
+    have = flatten(OmegaConf.to_container(saved, resolve=False))
+    full = flatten(OmegaConf.to_container(cfg, resolve=False))
+    unset = [None, {}, "???"]  # "???": a section with no value at all, which OmegaConf.missing_keys names
+    return [k for k, v in full.items() if k not in have and v not in unset and not (k in ADDED and ADDED[k] == v)]
 
 
 def validate_saved(cfg: DictConfig, run_dir: Path) -> None:
@@ -94,6 +110,7 @@ class EvalPreflight(Preflight):
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         if OmegaConf.is_missing(cfg, "run"):
             raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
+        RunDir(str(cfg.run)).ended_record("run")  # a run still training, or a damaged record: before any read
         evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
         validate_saved(evaluated, Path(str(cfg.run)))
         from hybrid_sysid.training.build import check_weights  # here: a sweep's parent loads no torch
@@ -109,6 +126,10 @@ def evaluate(composed: DictConfig, out_dir: Path, overrides: list[str], checked:
     cfg = evaluation_config(source, composed, overrides)
     if not checked:
         validate_saved(cfg, source)
+    if RunDir(out_dir).completed_record() is not None:  # its saved config is the evaluation's own: not replaced
+        done = RunDir(out_dir).previous_record(overrides)  # one of other overrides is refused
+        log.info("run %s already completed; not running it again", out_dir)
+        return done
     out_dir.mkdir(parents=True, exist_ok=True)
     RunDir(out_dir).write_config(cfg, overrides)
     return evaluate_checkpoint(cfg, source, out_dir, overrides, checked=True)
@@ -129,10 +150,19 @@ def hydra_main(composed: DictConfig) -> dict:
         again="run the same command again to evaluate it",
     )
     if record.get("status") == "completed" and draws_figures(composed.get("run_figures", "auto"), multirun):
+        draw_figures(out_dir)
+    return record
+
+
+def draw_figures(out_dir: Path) -> None:
+    """The evaluation's figures, from its files; it is complete without them, so a failure here is a warning (as
+    a run's, hybrid_sysid.cli.train)."""
+    try:
         from hybrid_sysid.report.run_figures import write_run_figures
 
         write_run_figures(out_dir)
-    return record
+    except Exception as exc:  # noqa: BLE001 - e.g. a full disk: the record already holds every number
+        log.warning("run figures not drawn in %s: %s: %s", out_dir, type(exc).__name__, exc)
 
 
 def main() -> None:

@@ -44,6 +44,31 @@ def holds(path: Path) -> bool:
     return str(path) in _held
 
 
+def held_elsewhere(path: Path) -> bool:
+    """Whether another process holds the writer lock of ``path`` now (a run still training, say), without taking
+    it: a shared lock is asked for and at once given back, on a descriptor opened read-only, so a directory a
+    reader may not write (a received run) can be asked too. A lock file that is missing or cannot be opened is no
+    writer's."""
+    import fcntl  # filelock's lock on POSIX is flock(2), which a shared flock request meets (runs on Linux only)
+    import os
+
+    if holds(path):
+        return False
+    try:
+        fd = os.open(Path(path) / WRITER_LOCK, os.O_RDONLY | os.O_NOFOLLOW | os.O_NONBLOCK)
+    except OSError:
+        return False
+    try:
+        fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+    except BlockingIOError:
+        return True
+    except OSError:  # a file system without flock: filelock would not have held it either
+        return False
+    finally:
+        os.close(fd)  # gives back the shared lock too
+    return False
+
+
 def release(path: Path) -> None:
     lock = _held.pop(str(path), None)
     if lock is not None:

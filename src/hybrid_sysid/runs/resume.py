@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import sys
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
@@ -13,6 +14,7 @@ from hybrid_sysid.runs import layout
 from hybrid_sysid.runs.rundir import RunDir, load_config
 
 log = logging.getLogger("hybrid_sysid")
+_uncompared: list[str] = []  # warn_uncompared's messages, from the preflight to the job's log file
 # keys that cannot change a run's weights or scores, so a resumed run may differ in them (a name ending in "."
 # frees every key under it: where a run's files go, conf/paths); which noise levels the learning curves are taken
 # at changes only which curve rows are recorded
@@ -43,7 +45,8 @@ def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
     try:
         saved = OmegaConf.to_container(load_config(run.config_file), resolve=False)
     except Exception as exc:  # noqa: BLE001 - a damaged file cannot tell; the run's own files still resume
-        log.warning("%s is unreadable (%s); resuming without comparing the configs", run.config_file, exc)
+        why = f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
+        warn_uncompared(f"{run.config_file} cannot be read ({why}); resuming without comparing the configs")
         return
     now = flatten(OmegaConf.to_container(cfg, resolve=False))
     was = flatten(saved if isinstance(saved, dict) else {})
@@ -68,6 +71,21 @@ def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
             f"it holds a run of another config ({shown}{'; ...' if len(differ) > 3 else ''}); resume with the run's "
             "own values",
         )
+
+
+def warn_uncompared(message: str) -> None:
+    """A resume that goes on unchecked: one line on stderr now (the preflight runs before Hydra opens the job's
+    log file, and its logging would print it among Hydra's own lines on stdout), kept for the run's log file,
+    where the job writes it (``uncompared``)."""
+    print(f"warning: {message}", file=sys.stderr, flush=True)
+    _uncompared.append(message)
+
+
+def uncompared() -> list[str]:
+    """The warnings of ``warn_uncompared`` not yet taken, now taken: the job writes them to its log file."""
+    taken = list(_uncompared)
+    _uncompared.clear()
+    return taken
 
 
 def resume_checkpoint(run: RunDir) -> Path | None:

@@ -15,6 +15,7 @@ from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.spec import DatasetSpec
 from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
+from hybrid_sysid.runs.layout import CONFIG
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.callbacks import AtomicCheckpointIO, StopAtSafePoints, ValidateAtEnd
 
@@ -160,9 +161,15 @@ def load_network(net: torch.nn.Module, cfg: DictConfig, run_dir: Path, key: str)
     naming ``key``."""
     run = RunDir(run_dir)
     source = run.saved_config(key)
+    saved_net = OmegaConf.select(source, "model.net")
     prior = arguments(cfg.model.net, "model.net")[0].prior_arguments  # derived from the data, not the architecture
     mine = {k: v for k, v in OmegaConf.to_container(cfg.model.net).items() if k not in prior}
-    theirs = {k: v for k, v in OmegaConf.to_container(source.model.net).items() if k not in prior}
+    saved = OmegaConf.to_container(saved_net) if isinstance(saved_net, DictConfig) else {}
+    theirs = {k: v for k, v in saved.items() if k not in prior}
+    lacks = ["model.net"] if "_target_" not in theirs else sorted(f"model.net.{k}" for k in set(mine) - set(theirs))
+    if lacks and theirs.get("_target_", mine.get("_target_")) == mine.get("_target_"):
+        # a file cut at a line's end parses: the network's section, or its last arguments, are gone
+        bad(key, Shown(str(run_dir)), f"its {CONFIG} has no value for {', '.join(lacks)} (a file cut short?)")
     if mine != theirs:
         diff = sorted(k for k in set(mine) | set(theirs) if mine.get(k) != theirs.get(k))
         bad(

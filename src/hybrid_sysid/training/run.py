@@ -28,8 +28,8 @@ from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.ranks import is_global_zero
 from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.runs.provenance import provenance_fields
-from hybrid_sysid.runs.resume import resume_checkpoint
-from hybrid_sysid.runs.rundir import RunDir, run_record
+from hybrid_sysid.runs.resume import resume_checkpoint, uncompared
+from hybrid_sysid.runs.rundir import RunDir, is_completed, run_record
 from hybrid_sysid.training.build import (
     build_baseline,
     build_callbacks,
@@ -157,6 +157,8 @@ def train(
     job, done = Job.open(cfg, run_dir, overrides)
     if done is not None:
         return done
+    for message in uncompared():  # resume='s warning, on stderr already: the run's log file keeps it too
+        to_log_file(message)
     L.seed_everything(cfg.seed, workers=True)  # 0 included
     if cfg.get("logger") and is_global_zero():  # experiment trackers (with DDP, global rank 0's alone)
         job.loggers = build_loggers(cfg, job.run.path, experiment, run_name, overrides)
@@ -248,16 +250,37 @@ def evaluate_checkpoint(
             Shown(str(source)),
             f"a run that trained a network (a baseline run, {cfg.baseline._target_}, has none)",
         )
+    record = RunDir(source).ended_record("run")  # a run still training, or a damaged record: refused before work
     model = build_model(cfg)
     checkpoint = load_network(model.net, cfg, source, "run")
-    steps = (RunDir(source).record("run") or {}).get("steps", 0)  # a damaged record fails here, before work
     job, done = Job.open(cfg, run_dir, overrides)
     if done is not None:  # a re-run sweep skips what it evaluated
         return done
+    fields = {"source_run": str(source), "checkpoint": checkpoint.name}
+    if is_completed(record):
+        steps = record.get("steps", 0)
+    else:  # a run killed, interrupted or failed: its checkpoint says how far it trained, and the record says so
+        steps = int(torch.load(checkpoint, map_location="cpu", weights_only=True).get("global_step", 0))
+        fields["source_status"] = (record or {}).get("status") or "no record"
+        log.warning(
+            "run %s has no completed record (%s): evaluating its %s, saved at step %d",
+            source,
+            fields["source_status"],
+            checkpoint.relative_to(source),
+            steps,
+        )
     dm = build_datamodule(cfg, model.objective)
     dm.setup()
-    fields = {"source_run": str(source), "checkpoint": checkpoint.name}
     return job.finish(Outcome(model, dm, steps, what=f"the network of {source}", fields=fields))
+
+
+def to_log_file(message: str) -> None:
+    """A warning into the log files of the root logger's handlers (Hydra's job logging: <run>/train.log) alone,
+    when the console has shown it already."""
+    record = log.makeRecord(log.name, logging.WARNING, __file__, 0, message, None, None)
+    for handler in logging.getLogger().handlers:
+        if isinstance(handler, logging.FileHandler):
+            handler.handle(record)
 
 
 def noise_levels(cfg: DictConfig) -> list[float]:
