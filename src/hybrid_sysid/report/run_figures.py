@@ -11,6 +11,7 @@ import pandas as pd
 from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
+from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.model.metrics import PARAMETERS
 from hybrid_sysid.report.plotting import PERCENT, curves_figure, figure_legend, percent, save_figure
 from hybrid_sysid.runs.layout import CURVES, FIGURES, PREDICTIONS
@@ -72,9 +73,13 @@ def write_run_figures(run_dir) -> None:
     figures = run / FIGURES
     figures.mkdir(exist_ok=True)
     test = predictions[predictions.split == "test"]
+    # each figure drawn into a temporary file that then replaces it: a run ended while drawing keeps the figure
+    # it had, never a truncated one
     if len(test):
-        predictions_figure(test, figures / "test_predictions.png", "test split: predictions and relative deviation")
+        title = "test split: predictions and relative deviation"
+        write_atomic(figures / "test_predictions.png", lambda p: predictions_figure(test, p, title))
     if len(curves):
         curves = curves.sort_values(["split", "noise_std", "step"], kind="stable")
         labels = [f"{s}, noise {n:g}" for s, n in zip(curves["split"], curves["noise_std"])]
-        curves_figure(curves.assign(label=labels), figures / "learning_curves.png", "learning curves")
+        labelled = curves.assign(label=labels)
+        write_atomic(figures / "learning_curves.png", lambda p: curves_figure(labelled, p, "learning curves"))
