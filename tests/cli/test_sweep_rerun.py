@@ -162,3 +162,18 @@ def test_a_sweep_directory_that_cannot_be_made_is_one_line(tmp_path, cli_in_proc
     code, _, err = cli_in_process(main, *args, cwd=tmp_path, env=env(tiny_cache))
     one_line(code, err, f"hydra.sweep.dir = {sw} cannot be created", "NotADirectoryError")
     assert (tmp_path / "a_file").read_text() == "not a directory" and not (tmp_path / "outputs").exists()
+
+
+@pytest.mark.parametrize("n_jobs", ["0", "two"])
+def test_a_joblib_sweep_of_no_workers_is_one_line_before_its_directory(n_jobs, tmp_path, cli_in_process, tiny_cache):
+    """joblib itself refuses n_jobs = 0 with a traceback, once the sweep directory and its lock are made."""
+    from hybrid_sysid.cli.train import main
+
+    sw = tmp_path / "sw"
+    args = ["-m", "seed=0,1", "data=tiny", "trainer=debug", "launcher=joblib", f"hydra.launcher.n_jobs={n_jobs}"]
+    code, _, err = cli_in_process(main, *args, f"hydra.sweep.dir={sw}", cwd=tmp_path, env=env(tiny_cache))
+    if n_jobs == "two":  # Hydra's schema for the joblib launcher refuses a word at composition, also exit 2
+        assert code == 2 and "Traceback" not in err and not sw.exists(), err[-2000:]
+        return
+    one_line(code, err, "hydra.launcher.n_jobs = 0 is not allowed")
+    assert not sw.exists()

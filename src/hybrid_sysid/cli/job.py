@@ -138,6 +138,7 @@ def task_config(cfg: DictConfig) -> DictConfig:
 
 SEARCH_SWEEPER = "hydra_plugins.hybrid_sysid_search.StudySweeper"  # conf/hydra/sweeper/study.yaml
 SLURM_LAUNCHER = "hydra_plugins.hybrid_sysid_slurm.SlurmLauncher"  # conf/launcher/slurm.yaml
+JOBLIB_LAUNCHER = "hydra_plugins.hydra_joblib_launcher.joblib_launcher.JoblibLauncher"  # conf/launcher/joblib.yaml
 
 
 class Preflight(Callback):
@@ -178,6 +179,7 @@ class Preflight(Callback):
             from hybrid_sysid.experiments.search import study_settings
 
             study_settings(task_config(config), config.hydra.sweeper, config.hydra.overrides.task)
+        check_joblib(config.hydra.launcher)
         if str(config.hydra.launcher.get("_target_", "")) == SLURM_LAUNCHER:  # the request against the partition
             from hybrid_sysid.cli.slurm import check_request
 
@@ -231,6 +233,15 @@ def writes_nothing(config: DictConfig) -> None:
         logging_cfg = config.hydra.job_logging
         logging_cfg.handlers.pop("file", None)
         logging_cfg.root.handlers = [h for h in logging_cfg.root.get("handlers", []) if h != "file"]
+
+
+def check_joblib(launcher: DictConfig) -> None:
+    """joblib's own refusal of n_jobs = 0 comes as a traceback after the sweep directory is made."""
+    if str(launcher.get("_target_", "")) != JOBLIB_LAUNCHER:
+        return
+    n_jobs = launcher.get("n_jobs")
+    if n_jobs is not None and (isinstance(n_jobs, bool) or not isinstance(n_jobs, int) or n_jobs == 0):
+        bad("hydra.launcher.n_jobs", n_jobs, "a whole number of workers, >= 1 (or < 0: all cores but n_jobs + 1)")
 
 
 def is_search(config: DictConfig) -> bool:
