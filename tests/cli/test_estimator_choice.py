@@ -1,0 +1,84 @@
+"""estimator= sets the network and its objective (or a baseline), conf/estimator; a model=, objective= or
+baseline= beside it would win in Hydra and train something else under the estimator's name. The reference is the
+estimator's own config file: what it overrides is what may not be given beside it."""
+
+from pathlib import Path
+
+import pytest
+import yaml
+from hydra import compose, initialize_config_dir
+
+from hybrid_sysid.cli.choices import SET_BY_ESTIMATOR, check_estimator
+from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.core.checks import ConfigError
+
+
+def overridden_groups(name):
+    """The groups conf/estimator/<name>.yaml overrides in its defaults list."""
+    defaults = yaml.safe_load((Path(CONF_DIR) / "estimator" / f"{name}.yaml").read_text())["defaults"]
+    return {next(iter(d)).split()[-1].lstrip("/") for d in defaults if isinstance(d, dict)}
+
+
+def test_the_groups_refused_beside_an_estimator_are_those_estimators_set():
+    names = [p.stem for p in Path(CONF_DIR, "estimator").glob("*.yaml")]
+    assert len(names) >= 8
+    assert set().union(*map(overridden_groups, names)) == set(SET_BY_ESTIMATOR)
+
+
+@pytest.mark.parametrize("extra", [["model=paper_cnn"], ["objective=hybrid"], ["baseline=ls_window"]])
+def test_a_run_naming_an_estimator_and_a_group_it_sets_is_one_line_and_makes_nothing(
+    extra, tmp_path, cli_in_process, tiny_cache
+):
+    from hybrid_sysid.cli.train import main
+
+    run = tmp_path / "run"
+    args = ["estimator=anchored_label_free", *extra, "data=tiny", "trainer=debug", f"hydra.run.dir={run}"]
+    code, _, err = cli_in_process(main, *args, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache})
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert (
+        err.startswith("error: estimator = 'anchored_label_free' is not allowed") and extra[0][:-1].split("=")[0] in err
+    )
+    assert not run.exists() and not (tmp_path / "outputs").exists()
+
+
+def test_a_sweep_of_estimators_beside_an_objective_is_one_line_before_its_directory(
+    tmp_path, cli_in_process, tiny_cache
+):
+    from hybrid_sysid.cli.train import main
+
+    sw = tmp_path / "sw"
+    args = [
+        "-m",
+        "estimator=ls,cnn_labelled",
+        "objective=hybrid",
+        "data=tiny",
+        "trainer=debug",
+        f"hydra.sweep.dir={sw}",
+    ]
+    code, _, err = cli_in_process(main, *args, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache})
+    assert code == 2 and "estimator = 'ls,cnn_labelled' is not allowed: beside objective=" in err, err[-2000:]
+    assert not sw.exists()
+
+
+def composed(*overrides):
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        return compose(config_name="config", overrides=list(overrides), return_hydra_config=True)
+
+
+@pytest.mark.parametrize(
+    "overrides, refused",
+    [
+        (["experiment=anchored"], False),  # sweeps estimator= alone
+        (["experiment=anchored", "objective=hybrid"], True),
+        (["experiment=robustness"], False),  # sweeps objective= without an estimator
+        (["experiment=robustness", "estimator=ls"], True),
+        (["estimator=cnn_labelled", "model.optim.lr=0.01", "objective.p_scale=[1,1]"], False),  # values, not choices
+    ],
+)
+def test_presets_and_values_under_the_groups_pass(overrides, refused):
+    cfg = composed(*overrides)
+    if refused:
+        with pytest.raises(ConfigError):
+            check_estimator(cfg)
+    else:
+        check_estimator(cfg)
