@@ -201,3 +201,15 @@ def test_an_evaluations_figures_that_cannot_be_drawn_are_a_warning(tiny_run, tmp
     assert proc.returncode == 0, proc.stderr[-2000:]
     assert f"run figures not drawn in {out_dir}: OSError" in proc.stdout + proc.stderr
     assert json.loads((out_dir / "metrics.json").read_text())["status"] == "completed"
+
+
+def test_a_sweep_over_runs_evaluates_each(tiny_run, tmp_path, cli_in_process):
+    """run= swept (adversarial case B44): the sweep's checks read its config unresolved, so the mandatory run=,
+    given per job only, cannot stop them; each job evaluates its own run."""
+    a, b = copy_of(tiny_run, tmp_path / "a"), copy_of(tiny_run, tmp_path / "b")
+    sw = tmp_path / "sw"
+    proc = eval_cli(cli_in_process, tmp_path, "-m", f"run={a},{b}", "car=paper", f"hydra.sweep.dir={sw}")
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    records = [json.loads(p.read_text()) for p in sorted(sw.glob("*/metrics.json"))]
+    assert [r["status"] for r in records] == ["completed", "completed"]
+    assert sorted(r["source_run"] for r in records) == [str(a), str(b)]
