@@ -112,9 +112,10 @@ class EvalPreflight(Preflight):
             raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
         RunDir(str(cfg.run)).ended_record("run")  # a run still training, or a damaged record: before any read
         evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
-        validate_saved(evaluated, Path(str(cfg.run)))
-        from hybrid_sysid.training.build import check_weights  # here: a sweep's parent loads no torch
+        from hybrid_sysid.training.build import check_sizes, check_weights  # here: a sweep's parent loads no torch
 
+        check_sizes(evaluated, Path(str(cfg.run)), "run")  # before validate builds the network for real
+        validate_saved(evaluated, Path(str(cfg.run)))
         check_weights(evaluated, Path(str(cfg.run)), "run")
 
 

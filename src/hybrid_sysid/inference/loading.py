@@ -15,7 +15,7 @@ from hybrid_sysid.inference.estimator import Estimator
 from hybrid_sysid.inference.inputs import InputError
 from hybrid_sysid.runs.layout import CONFIG
 from hybrid_sysid.runs.rundir import RunDir
-from hybrid_sysid.training.build import build_baseline, build_model
+from hybrid_sysid.training.build import build_baseline, build_model, first_misfit
 
 
 def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estimator:
@@ -76,24 +76,15 @@ def _network(cfg: DictConfig, run: RunDir, path: Path, state: dict) -> torch.nn.
 
 
 def _sizes_fit(cfg: DictConfig, run: RunDir, path: Path, state: dict) -> None:
-    """The network the config describes, built without memory (torch's meta device), has the checkpoint's tensor
-    shapes: a received config asking for 200,000 channels is refused here, before it is built for real (1.4 TB).
-    Its real size is then bounded by the checkpoint file's."""
-    try:
-        with torch.device("meta"):
-            meta = build_model(cfg)
-    except Exception:  # noqa: BLE001 - a config the checks refuse (they name it), a builder needing real tensors
-        return
-    want = {k: tuple(v.shape) for k, v in meta.state_dict().items()}
-    have = {k: tuple(v.shape) for k, v in state.items() if isinstance(v, torch.Tensor)}
-    differ = sorted(k for k in want.keys() | have.keys() if want.get(k) != have.get(k))
-    if differ:
-        k = differ[0]
+    """The network the config describes has the checkpoint's tensor shapes (training.build.first_misfit)."""
+    misfit = first_misfit(cfg, state)
+    if misfit is not None:
+        k, there, here, n = misfit
         raise InputError(
             "run",
             Shown(str(run.path)),
             f"a run whose {path.relative_to(run.path)} fits its model.net ({cfg.model.net._target_}): {k} is "
-            f"{have.get(k, 'missing')} there, {want.get(k, 'missing')} in the config ({len(differ)} tensors differ)",
+            f"{there} there, {here} in the config ({n} tensors differ)",
         )
 
 

@@ -148,6 +148,43 @@ def monitor_of(cfg: DictConfig, objective) -> str:
     return objective.monitor if m == "auto" else m
 
 
+def first_misfit(cfg: DictConfig, state: dict) -> tuple[str, tuple | str, tuple | str, int] | None:
+    """The first tensor whose shape differs between the network ``cfg`` describes and a checkpoint's ``state``
+    (key, shape there, shape in the config, how many differ), None when all fit. The network is built on torch's
+    meta device, without memory: a received config asking for 200,000 channels (1.4 TB) is told here, before any
+    check builds it for real, whose size is then bounded by the checkpoint file's."""
+    try:
+        with torch.device("meta"):
+            meta = build_model(cfg)
+    except Exception:  # noqa: BLE001 - a config the checks refuse (they name it), a builder needing real tensors
+        return None
+    want = {k: tuple(v.shape) for k, v in meta.state_dict().items()}
+    have = {k: tuple(v.shape) for k, v in state.items() if isinstance(v, torch.Tensor)}
+    differ = sorted(k for k in want.keys() | have.keys() if want.get(k) != have.get(k))
+    if not differ:
+        return None
+    k = differ[0]
+    return k, have.get(k, "missing"), want.get(k, "missing"), len(differ)
+
+
+def check_sizes(cfg: DictConfig, run_dir: Path, key: str) -> None:
+    """``first_misfit`` against the trained checkpoint of the run in ``run_dir``: a ConfigError naming ``key``. A
+    baseline run has no network to build: the other checks name it."""
+    if OmegaConf.select(cfg, "baseline", default=None) is not None:
+        return
+    run = RunDir(run_dir)
+    path, state = run.load_weights(key)
+    misfit = first_misfit(cfg, state)
+    if misfit is not None:
+        k, there, here, n = misfit
+        bad(
+            key,
+            Shown(str(run_dir)),
+            f"a run whose {path.relative_to(run.path)} fits its model.net ({cfg.model.net._target_}): {k} is "
+            f"{there} there, {here} in the config ({n} tensors differ)",
+        )
+
+
 def check_weights(cfg: DictConfig, run_dir: Path, key: str) -> None:
     """The network of ``cfg`` takes the trained weights of the run in ``run_dir`` (``load_network``): a ConfigError
     naming ``key`` otherwise, before any directory is made (the command-line preflight)."""
