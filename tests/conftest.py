@@ -6,6 +6,7 @@ from hydra import compose, initialize_config_dir
 
 pytest.register_assert_rewrite("helpers")  # a plugin below, imported here first
 from helpers.app_process import run_app  # noqa: E402
+from helpers.mounts import small_tmpfs  # noqa: E402
 from helpers.started_early import started_early  # noqa: E402
 
 pytest_plugins = [
@@ -136,3 +137,11 @@ def _two_threads():
 
 
 os.environ.setdefault("HYDRA_FULL_ERROR", "1")
+
+
+@pytest.fixture
+def small_fs(tmp_path):
+    """A 1 MiB tmpfs, another file system than the system's temp folder, where a full or read-only disk can be made
+    (root only: the test skips without it), unmounted after."""
+    with small_tmpfs(tmp_path / "mnt") as mnt:
+        yield mnt

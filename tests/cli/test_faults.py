@@ -6,7 +6,6 @@ ended process left, run the command's main() in this process (cli_in_process in 
 tests/runs/test_reliability.py."""
 
 import json
-import os
 import shutil
 import signal
 import subprocess
@@ -20,6 +19,7 @@ import torch
 from omegaconf import OmegaConf
 
 from helpers import app_process
+from helpers.mounts import small_tmpfs
 from helpers.started_early import started_early
 
 pytestmark = [pytest.mark.integration, pytest.mark.faults]
@@ -380,18 +380,10 @@ def test_a_terminated_sweep_writes_its_summary_and_a_rerun_completes_it(request,
 def full_disk(tmp, env, tiny_cache):
     """A real process: what it prints and its exit status when its own files cannot be written. What the test
     asserts on: the process, the record it left (None if none) and the temporary files left behind."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small filesystem needs root; without it the run dir cannot be made to fill up")
-    mnt = tmp / "small"
-    mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=192k", "tmpfs", str(mnt)], capture_output=True).returncode:
-        pytest.skip("this platform does not allow mounting a tmpfs")
-    try:
+    with small_tmpfs(tmp / "small", "192k") as mnt:
         proc = run_app(tmp, *TINY, f"hydra.run.dir={mnt / 'run'}", cache=tiny_cache, env=env)
         stored = record(mnt / "run") if (mnt / "run" / "metrics.json").exists() else None
         return proc, stored, list((mnt / "run").rglob("*.tmp"))
-    finally:
-        subprocess.run(["umount", str(mnt)], check=True)
 
 
 def test_a_full_disk_ends_with_a_record_or_one_line(full_disk):

@@ -347,19 +347,6 @@ def test_cache_files_take_the_umask_mode(tmp_path):
     assert (cache_path(DatasetSpec(**SPEC_ARGS), tmp_path).stat().st_mode & 0o777) == 0o644  # readable by all
 
 
-@pytest.fixture
-def small_fs(tmp_path):
-    """A 1 MiB tmpfs (root only: that is where a full or read-only disk can be made), unmounted after."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small filesystem needs root")
-    mnt = tmp_path / "mnt"
-    mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True).returncode:
-        pytest.skip("this platform does not allow mounting a tmpfs")
-    yield mnt
-    subprocess.run(["umount", str(mnt)], check=True)
-
-
 @pytest.mark.faults
 def test_a_read_only_cache_holding_a_valid_file_is_read(small_fs):
     ds, _ = dataset(small_fs)

@@ -2,26 +2,10 @@
 file and renames it over it, never through a temporary file on another file system (fsspec's, in the system's temp
 folder, moved by a copy that a full disk cuts short)."""
 
-import os
-import subprocess
-
 import pytest
 import torch
 
 from hybrid_sysid.training.build import build_trainer
-
-
-@pytest.fixture
-def small_fs(tmp_path):
-    """A 1 MiB tmpfs, another file system than the system's temp folder (root only), unmounted after."""
-    if os.geteuid() != 0:
-        pytest.skip("mounting a small filesystem needs root")
-    mnt = tmp_path / "mnt"
-    mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", "size=1m", "tmpfs", str(mnt)], capture_output=True).returncode:
-        pytest.skip("this platform does not allow mounting a tmpfs")
-    yield mnt
-    subprocess.run(["umount", str(mnt)], check=True)
 
 
 @pytest.mark.faults
