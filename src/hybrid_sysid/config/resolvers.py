@@ -1,6 +1,7 @@
 """The config's resolvers and its registration with Hydra: ``${p_prior:...}`` derives the prior of p from the
 car and the data, ``${first_set:...}`` picks the run directory, ``${fault_fix:}`` the least-squares fix of a fault,
-``${slurm_mem_gb:...}`` the memory a SLURM job asks, ``${hydra_subdir:...}`` where Hydra saves a job's config."""
+``${slurm_mem_gb:...}`` the memory a SLURM job asks (``${hydra_subdir:...}``, where Hydra saves a job's config, is the
+runs layer's: hybrid_sysid/runs/__init__.py)."""
 
 from __future__ import annotations
 
@@ -54,16 +55,6 @@ def slurm_mem_gb(n_roads: int, n_masses: int, n_steps: int) -> int:
     return math.ceil(dataset_bytes(int(n_roads), int(n_masses), int(n_steps)) / 2**30 + TORCH_GB)
 
 
-def hydra_subdir(output_dir: str | None) -> str | None:
-    """``${hydra_subdir:${hydra.runtime.output_dir}}``, Hydra's output_subdir (conf/config.yaml, conf/eval.yaml):
-    .hydra, where Hydra saves a job's config as the job starts, but None, so Hydra saves nothing, in a directory
-    holding a completed run. Its saved config belongs to its record and is never replaced: a re-run of it is
-    skipped or refused (cli.job), after Hydra would already have rewritten it."""
-    from hybrid_sysid.runs.rundir import RunDir
-
-    return None if output_dir and RunDir(output_dir).completed_record() is not None else ".hydra"
-
-
 def register() -> None:
     """The schema for Hydra and the resolvers: ``p_prior``, ``fault_fix`` and ``slurm_mem_gb`` (above), and
     ``first_set`` for the run directory (hydra.run.dir is ``resume`` when given, else a new time-stamped one)."""
@@ -73,4 +64,3 @@ def register() -> None:
     OmegaConf.register_new_resolver("p_prior", p_prior, replace=True)
     OmegaConf.register_new_resolver("fault_fix", fault_fix, replace=True)
     OmegaConf.register_new_resolver("slurm_mem_gb", slurm_mem_gb, replace=True)
-    OmegaConf.register_new_resolver("hydra_subdir", hydra_subdir, replace=True)

@@ -253,7 +253,7 @@ def validate_loggers(cfg: DictConfig) -> None:
                 allowed=f"it needs the {needs[0]} package, not installed: {install_command('loggers')}",
             )
         if target.endswith(".MLFlowLogger"):
-            from hybrid_sysid.training.tracking.server import check_store
+            from hybrid_sysid.config.stores import check_store
 
             check_store(str(lg.get("tracking_uri") or ""), f"logger.{name}.tracking_uri")
 

@@ -20,7 +20,7 @@ def without_password(uri: str) -> str:
     if parts.password is None:
         return uri
     netloc = parts.netloc.replace(f":{parts.password}@", ":***@", 1)
-    return urlunsplit(parts._replace(netloc=netloc))
+    return urlunsplit((parts.scheme, netloc, parts.path, parts.query, parts.fragment))
 
 
 def check_server(uri: str, key: str, timeout: float = ANSWER_SECONDS) -> None:
