@@ -67,10 +67,14 @@ def test_sigterm_while_a_parallel_sweeps_workers_start_is_143_without_a_tracebac
 
 
 @pytest.fixture
-def worker(tmp_path):
-    """This process as a sweep's worker between jobs: its signal handlers and the sweep's state put back after."""
+def worker(tmp_path, monkeypatch):
+    """This process as a sweep's worker between jobs: its signal handlers and the sweep's state put back after.
+    It has no workers of its own: its children are other tests' processes started early, which a signal passed on
+    by the sweep's handler (stop_sweep) would end."""
+    from hybrid_sysid.cli import process
     from hybrid_sysid.cli.process import PROCESS, SIGNALS
 
+    monkeypatch.setattr(process, "children", lambda: [])
     handlers = {s: signal.getsignal(s) for s in SIGNALS}
     PROCESS.reset()
     sw = tmp_path / "sw"
