@@ -219,15 +219,6 @@ def plan(cfg: DictConfig, job_dir: Path) -> list[tuple[str, DictConfig, Path, li
     return runs
 
 
-def write_sub_config(run_dir: Path, sub: DictConfig, overrides: list[str]) -> None:
-    """The sub-run's config and overrides, as Hydra writes a job's, unless it holds a completed run: a re-run skips
-    that run, whose config must stay the one it was trained with (a changed preset, other overrides that the run
-    then refuses, would otherwise replace it)."""
-    run = RunDir(run_dir)
-    if run.completed_record() is None:
-        run.write_config(sub, overrides)
-
-
 def run_chain(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     """Every sub-run of one seed, in order (module docstring). Each sub-run directory gets its config in
     .hydra/config.yaml, as a run of hybrid-sysid has (so hybrid-sysid-eval and load_estimator read it), and a
@@ -238,7 +229,7 @@ def run_chain(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     for kind, sub, run_dir, overrides, source in runs:
         overrides = [o for o in job_overrides if not o.startswith("seed=")] + overrides + [f"seed={cfg.seed}"]
         log.info("transfer: %s %s", kind, " ".join(overrides))
-        write_sub_config(run_dir, sub, overrides)
+        RunDir(run_dir).write_config(sub, overrides)  # never over a completed run's
         if kind == "eval":
             evaluate_checkpoint(sub, source, run_dir, overrides, checked=True)
         else:

@@ -30,7 +30,6 @@ from hybrid_sysid.core.checks import bad, check_int
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.presets import preset
 from hybrid_sysid.experiments.search import check_sampler, check_search, sampler_for
-from hybrid_sysid.experiments.transfer import write_sub_config
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.run import train
 
@@ -76,7 +75,7 @@ def as_overrides(values: dict) -> list[str]:
 
 def run_sub(sub: DictConfig, run_dir: Path, overrides: list[str]) -> dict:
     log.info("tuned: %s", " ".join(overrides))
-    write_sub_config(run_dir, sub, overrides)  # never over a completed run's
+    RunDir(run_dir).write_config(sub, overrides)  # never over a completed run's
     return train(sub, run_dir, overrides)
 
 

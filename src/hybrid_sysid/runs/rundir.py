@@ -111,12 +111,8 @@ class RunDir:
         naming ``key`` when another process still holds its writer lock (a run in training: its checkpoints and
         record are not yet what it will leave) or when its record is damaged."""
         if locks.held_elsewhere(self.path):
-            bad(
-                key,
-                Shown(str(self.path)),
-                "a run that has ended: another process is still writing it (a run in training, say); use it once "
-                "that process has ended",
-            )
+            why = "another process is still writing it (a run in training, say); use it once that process has ended"
+            bad(key, Shown(str(self.path)), f"a run that has ended: {why}")
         return self.record(key)
 
     def completed_record(self) -> dict | None:
@@ -212,14 +208,16 @@ class RunDir:
     # -- writing ------------------------------------------------------------------------------------------------
 
     def write_config(self, cfg: DictConfig, overrides: list[str]) -> None:
-        """config.yaml and overrides.yaml, as Hydra writes them for a job before it starts."""
-        write_yaml_atomic(self.config_file, OmegaConf.to_container(cfg))
-        write_yaml_atomic(self.path / layout.OVERRIDES, list(overrides))
+        """config.yaml and overrides.yaml, as Hydra writes them for a job before it starts; never over a completed
+        run's, which belong to its record (a re-run skips that run, or refuses other overrides)."""
+        if self.completed_record() is None:
+            write_yaml_atomic(self.config_file, OmegaConf.to_container(cfg))
+            write_yaml_atomic(self.path / layout.OVERRIDES, list(overrides))
 
     def write_tables(self, predictions, curves) -> None:
         """predictions.csv and curves.csv (DataFrames); the run's figures are drawn from them."""
-        write_atomic(self.path / layout.CURVES, lambda p: curves.to_csv(p, index=False))
-        write_atomic(self.path / layout.PREDICTIONS, lambda p: predictions.to_csv(p, index=False))
+        for name, table in ((layout.CURVES, curves), (layout.PREDICTIONS, predictions)):
+            write_atomic(self.path / name, lambda p, table=table: table.to_csv(p, index=False))
 
     def write_record(self, record: dict) -> None:
         """metrics.json, atomically; never over a completed run's record (a run is final once done)."""

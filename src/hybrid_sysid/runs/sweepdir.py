@@ -7,12 +7,14 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config import flatten
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.runs import layout
 from hybrid_sysid.runs.rundir import load_config, read_yaml
 
 KEY = "hydra.sweep.dir"
+ABSENT = "(absent)"
 
 
 class SweepDir:
@@ -94,18 +96,11 @@ def _task(values: dict) -> dict:
     return {k: v for k, v in values.items() if k != "hydra"}
 
 
-def first_difference(there, here, key: str = ""):
-    """The first key whose value differs between two plain configs, as (key, there, here); None when equal."""
-    if isinstance(there, dict) and isinstance(here, dict):
-        for k in sorted(set(there) | set(here), key=str):
-            sub = f"{key}.{k}" if key else str(k)
-            if k not in there or k not in here:
-                return sub, there.get(k, "(absent)"), here.get(k, "(absent)")
-            found = first_difference(there[k], here[k], sub)
-            if found is not None:
-                return found
-        return None
-    return None if there == here else (key, there, here)
+def first_difference(there: dict, here: dict):
+    """The first dotted key whose value differs between two plain configs, as (key, there, here); None when equal."""
+    was, now = flatten(there), flatten(here)
+    key = next((k for k in sorted(was.keys() | now.keys()) if was.get(k, ABSENT) != now.get(k, ABSENT)), None)
+    return None if key is None else (key, was.get(key, ABSENT), now.get(key, ABSENT))
 
 
 def sweep_dir_of(run_dir: Path) -> Path | None:
