@@ -16,10 +16,14 @@ def user_env(env=None, cache=None) -> dict:
     return env
 
 
-def run_app(cwd, *args, cache=None, env=None, timeout=600, module="hybrid_sysid") -> subprocess.CompletedProcess:
-    """The app run to its end, its output captured (not a terminal), as `cmd > log 2>&1` would."""
+def run_app(
+    cwd, *args, cache=None, env=None, timeout=600, module="hybrid_sysid", script=None
+) -> subprocess.CompletedProcess:
+    """The app run to its end, its output captured (not a terminal), as `cmd > log 2>&1` would. ``script``: a
+    Python file run in place of the module (the app with a function of it wrapped by a test)."""
+    start = [str(script)] if script is not None else ["-m", module]
     return subprocess.run(
-        [sys.executable, "-m", module, *map(str, args)],
+        [sys.executable, *start, *map(str, args)],
         cwd=cwd,
         env=user_env(env, cache),
         capture_output=True,

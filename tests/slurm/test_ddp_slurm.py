@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 
 from helpers.app_process import run_app, user_env
+from helpers.slurm_accounting import settled
 
 pytestmark = [pytest.mark.slurm, pytest.mark.integration]
 COMMAND = ["data=tiny", "trainer=ddp", "trainer.max_steps=12", "trainer.eval_every_n_steps=6", "trainer.threads=1"]
@@ -42,10 +43,8 @@ def test_two_tasks_of_one_job_train_as_two_ranks_and_write_one_record(cluster, t
     output = (tmp_path / "job.out").read_text(errors="replace") if (tmp_path / "job.out").exists() else ""
     assert done.returncode == 0, done.stderr[-2000:] + output[-3000:]
     job_id = done.stdout.strip().split(";")[0]
-    state = subprocess.run(
-        ["sacct", "-n", "-X", "-P", "-j", job_id, "-o", "State,NTasks"], capture_output=True, text=True
-    )
-    assert state.stdout.split("|")[0].strip() == "COMPLETED", state.stdout
+    state = settled(job_id)  # accounting lags the job's end
+    assert [s for _, s in state] == ["COMPLETED"], state
     assert output.count("p1 mean rel. dev.") == 1, output[-3000:]  # one table, printed by global rank 0
     assert list(tmp_path.rglob("metrics.json")) == [run / "metrics.json"]
     assert not list(run.glob("*process_1*")) and len(list(run.glob("*.log"))) == 1

@@ -15,6 +15,7 @@ from pathlib import Path
 import pytest
 
 from helpers.app_process import launch, run_app
+from helpers.slurm_accounting import settled
 
 pytestmark = [pytest.mark.slurm, pytest.mark.integration]
 SETUP = Path(__file__).resolve().parents[2] / "scripts" / "slurm" / "setup.sh"
@@ -53,11 +54,9 @@ def no_job_left(tmp_path):
 
 
 def sacct_states(array: str) -> list[str]:
-    """Every state SLURM's accounting holds for the array's jobs, requeued attempts included (-D)."""
-    out = subprocess.run(
-        ["sacct", "-n", "-X", "-D", "-P", "-j", array, "-o", "JobID,State"], capture_output=True, text=True, check=True
-    ).stdout
-    return [line.split("|")[1].split()[0] for line in out.splitlines() if "|" in line]
+    """Every state SLURM's accounting holds for the array's jobs, requeued attempts included (-D), once settled
+    (accounting lags a job's end: helpers/slurm_accounting.py)."""
+    return [state for _, state in settled(array, all_attempts=True)]
 
 
 def array_of(text: str) -> str:

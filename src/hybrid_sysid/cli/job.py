@@ -89,7 +89,10 @@ def run_job(
             with interruptible(), job_running():
                 quiet_libraries()  # Lightning's messages once, through the job's logging (hybrid_sysid.cli.console)
                 try:
-                    return work()
+                    result = work()
+                    if not multirun and isinstance(result, dict) and result.get("status") == "completed":
+                        PROCESS.completed = run_dir  # a signal from here on stops nothing: exit status 0
+                    return result
                 except SystemExit:  # e.g. Lightning's SIGTERMException, raised at its own safe points
                     if stop.requested() is None:
                         raise

@@ -103,10 +103,11 @@ class CommandProcess:
     sweep_dir: Path | None = None
     job_started: bool = False
     summarised: bool = False  # the sweep's end (cli.sweep) has run: no summary is written here after it
+    completed: Path | None = None  # a single job's directory, once its completed record is written
 
     def reset(self) -> None:
         """As a new process starts (a test that runs several commands in one process)."""
-        self.sweep_dir, self.job_started, self.summarised = None, False, False
+        self.sweep_dir, self.job_started, self.summarised, self.completed = None, False, False, None
         stop.reset()
 
 
@@ -239,5 +240,10 @@ def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
         for s, handler in previous.items():
             signal.signal(s, handler)
     received = stop.received()
+    if received is not None and PROCESS.completed is not None:
+        # the work it would have stopped is done and recorded: the status says so, not the signal
+        name = signal.Signals(received).name
+        print(f"{name} received after the run completed; its record in {PROCESS.completed} is whole", file=sys.stderr)
+        return
     if received is not None:
         sys.exit(128 + received)

@@ -10,6 +10,7 @@ entry points are hybrid_sysid.cli.
 
 from __future__ import annotations
 
+import functools
 import logging
 import time
 from dataclasses import dataclass, field
@@ -132,6 +133,24 @@ class Job:
         return record
 
 
+def keeps_thread_count(fn):
+    """Run ``fn`` and put torch's thread count back as it was: a run sets its own (``trainer.threads``), and one run
+    called after another in the same process (a test, a notebook, the basic launcher's jobs) must start from the
+    count the process had, or its numbers would depend on the runs before it (docs/reliability/reproducibility.md)."""
+
+    @functools.wraps(fn)
+    def wrapper(*args, **kwargs):
+        threads = torch.get_num_threads()
+        try:
+            return fn(*args, **kwargs)
+        finally:
+            if torch.get_num_threads() != threads:
+                torch.set_num_threads(threads)
+
+    return wrapper
+
+
+@keeps_thread_count
 def train(
     cfg: DictConfig,
     run_dir: str | Path,
@@ -235,6 +254,7 @@ def _baseline(cfg: DictConfig) -> BaselineOutcome:
     return BaselineOutcome(estimator, dm, what=f"baseline {cfg.baseline._target_}")
 
 
+@keeps_thread_count
 def evaluate_checkpoint(
     cfg: DictConfig, source: str | Path, run_dir: str | Path, overrides=(), checked: bool = False
 ) -> dict:
