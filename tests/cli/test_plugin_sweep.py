@@ -66,6 +66,7 @@ def test_the_plugins_train_in_a_sweep_beside_a_built_in_objective(plugin_sweep):
     assert proc.returncode == 0, proc.stderr[-2000:]
     table = [ln.split("|") for ln in (sweep / "summary.md").read_text().splitlines() if ln.startswith("| ")]
     rows = {cells[1].strip(): cells for cells in table[1:]}
+    assert [c.strip() for c in rows.pop("Cramér-Rao bound")[-3:-1]] == ["", ""]  # the bound: no seeds, no failures
     assert set(rows) == {"labelled", "relative_l2"}
     for objective in rows:
         job = job_of(sweep, objective)

@@ -24,6 +24,10 @@ def test_an_estimator_preset_selects_its_model_and_objective_or_a_baseline(name)
     if name.startswith("ls"):
         assert choices.baseline.span == "window" and choices.baseline.filter == "bandpass"
         return
+    if name.startswith("eiv"):  # the errors-in-variables fit of each window, with the simulator's prior for _map
+        assert choices.baseline._target_.endswith("ErrorsInVariablesFit")
+        assert (choices.baseline.prior is not None) == name.endswith("_map")
+        return
     model, objective = name.split("_", 1)
     assert choices.baseline is None
     assert choices.model.net._target_.endswith({"cnn": "FastCNN", "anchored": "AnchoredCNN"}[model])

@@ -326,7 +326,7 @@ def test_the_field_plan(make_cfg, tmp_path):
         (
             {"transfer.baseline": "ls_bandpas"},
             r"transfer.baseline = 'ls_bandpas' is not allowed: null or a baseline preset \(conf/baseline\): "
-            r"ls_bandpass, ls_bandpass_m3, ls_series, ls_window$",
+            r"eiv, eiv_map, ls_bandpass, ls_bandpass_m3, ls_series, ls_window$",
         ),
         # a lighter seat on the target: p beyond the bounds the adapted networks keep from the source. The target's
         # p1 range: 0.7 * 688.8 / 200 to 1.3 * 688.8 / 30; the source's bounds: 0.7 * 615 / 200 = 2.1525 to

@@ -114,7 +114,7 @@ class SweepSummary(Callback):
 
         def show(df, table) -> None:  # the table as soon as it is written; the sweep's figures after it
             print(f"\nmean relative deviation on the test split [%], mean ± std over seeds ({sweep_dir}):\n")
-            print(to_markdown(table, compare=self.compare), flush=True)
+            print(to_markdown(table, compare=self.compare, bound=table.attrs.get("bound")), flush=True)
             warning = threads_warning(df)
             if warning:
                 log.warning(warning)

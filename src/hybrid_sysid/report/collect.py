@@ -30,6 +30,9 @@ TAIL = [
     "mean_rel_dev",
     "std_rel_dev",
     "n",
+    "bound",
+    "bound_output",
+    "efficiency",
     "steps",
     "train_seconds",
     "threads",
@@ -38,6 +41,7 @@ TAIL = [
     "cpu",
 ]
 RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
+BOUND = ["bound", "bound_output", "efficiency"]  # a test row's Cramér-Rao bound (absent from older records)
 
 
 def run_config(run_dir) -> dict:
@@ -108,7 +112,10 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
             "cpu": rec.get("cpu"),
         }
         overrides = _overrides(rec.get("overrides"))
-        results = [{**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1)} for r in rec.get("results") or []]
+        results = [
+            {**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1), **{k: r.get(k) for k in BOUND}}
+            for r in rec.get("results") or []
+        ]
         for r in results:  # a deviation that is no number >= 0 (text, a negative) is no measurement
             for key in ("mean_rel_dev", "std_rel_dev"):
                 if isinstance(r[key], bool) or not isinstance(r[key], (int, float)) or r[key] < 0:
@@ -160,7 +167,7 @@ def load_runs(paths, exclude=()) -> tuple[Path, pd.DataFrame]:
             df.loc[blank & (df.run == name), key] = "" if value is None else str(value)
     for col in ("seed", "windows", "n", "steps", "threads"):
         df[col] = pd.to_numeric(df[col], errors="coerce").round().astype("Int64")  # NaN-safe, writes "1" not "1.0"
-    for col in ("noise_std", "mean_rel_dev", "std_rel_dev", "train_seconds"):
+    for col in ("noise_std", "mean_rel_dev", "std_rel_dev", "train_seconds", *BOUND):
         df[col] = pd.to_numeric(df[col], errors="coerce").astype(float)
     return root, df
 
@@ -168,7 +175,9 @@ def load_runs(paths, exclude=()) -> tuple[Path, pd.DataFrame]:
 def collect(paths) -> pd.DataFrame:
     """Long form: one row per job x split x noise_std x windows x parameter; a failed or unreadable job is one
     row with NaN metrics. Columns: run, status, error, seed, one per override key (strings, "" if unset), split,
-    noise_std, windows, parameter, mean_rel_dev, std_rel_dev, n, steps, train_seconds, threads (torch's thread
+    noise_std, windows, parameter, mean_rel_dev, std_rel_dev, n, bound, bound_output and efficiency (a test row's
+    Cramér-Rao bound and how near the estimator comes to it: model.metrics.bound_fields), steps, train_seconds,
+    threads (torch's thread
     count), git_commit and git_dirty (the checkout the run's code came from, and whether its tracked files differed
     from that commit), cpu (the processor's model name); the last four are empty for records written before they
     were recorded."""

@@ -15,7 +15,15 @@ from hybrid_sysid.report.extras import extras_of
 from hybrid_sysid.report.latex import to_latex
 from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.stats import K_LEVEL
-from hybrid_sysid.report.tables import METRICS, compared_level, paired_deviations, row_label, summary_table
+from hybrid_sysid.report.tables import (
+    BOUND_LABEL,
+    METRICS,
+    bound_table,
+    compared_level,
+    paired_deviations,
+    row_label,
+    summary_table,
+)
 from hybrid_sysid.runs.layout import CURVES, FIGURES
 from hybrid_sysid.runs.rundir import RunDir
 
@@ -73,7 +81,20 @@ def tested_table(df: pd.DataFrame, root: Path, split: str = "test", metric: str 
     table = summary_table(df, split=split, metric=metric)
     if metric == "mean_rel_dev":
         table.attrs["paired"] = paired_deviations(load_predictions(root, df, split), df, table)
+        table.attrs["bound"] = bound_table(df, split)  # the robustness figure's dashed line
     return table
+
+
+def bound_note(bound) -> list[str]:
+    """What the table's Cramér-Rao bound row means (markdown.bound_rows), when it has one."""
+    if bound is None or bound.empty:
+        return []
+    return [
+        f"{BOUND_LABEL}: the mean relative deviation an efficient unbiased estimator is expected to reach on these "
+        "test windows at each noise level (both channels noisy; the true input and the window's transient unknown; "
+        "model.metrics.bound_fields). An estimator below it draws on prior knowledge: a training set or a prior.",
+        "",
+    ]
 
 
 def write_summary(
@@ -107,7 +128,8 @@ def write_summary(
         f"{len(runs)} runs: {len(runs) - n_bad} completed, {n_bad} failed or unreadable. Cells: mean ± sample "
         f"standard deviation (ddof=1) over seeds, [95% t interval].{windows_note(df, table, split)}",
         "",
-        to_markdown(table, compare=compare),
+        to_markdown(table, compare=compare, bound=table.attrs.get("bound")),
+        *bound_note(table.attrs.get("bound")),
         *([threads_warning(df), ""] if threads_warning(df) else []),
         "## Failed jobs",
         "",

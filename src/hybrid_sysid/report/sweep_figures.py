@@ -19,7 +19,7 @@ from hybrid_sysid.report.plotting import (
     save_figure,
 )
 from hybrid_sysid.report.stats import K_LEVEL
-from hybrid_sysid.report.tables import METRICS, row_label
+from hybrid_sysid.report.tables import BOUND_LABEL, METRICS, row_label
 
 DODGE = 0.3  # the width over which the rows' points at one noise level are spread, so error bars do not hide
 
@@ -56,6 +56,18 @@ def draw_rows(ax, table, param, levels, styles, labels) -> None:
         )
 
 
+def draw_bound(ax, bound: pd.DataFrame, param: str, levels) -> None:
+    """The Cramér-Rao bound (report.tables.bound_table) in percent at each noise level: black and dashed for the
+    smallest K, dotted for the next; what no unbiased estimator beats on these windows."""
+    for i, (k, row) in enumerate(bound.iterrows()):
+        x = [j for j, n in enumerate(levels) if (n, param) in row.index and np.isfinite(row[(n, param)])]
+        if not x:
+            continue
+        y = [PERCENT * row[(levels[j], param)] for j in x]
+        label = BOUND_LABEL + (f", K = {k}" if len(bound) > 1 else "")
+        ax.plot(x, y, color="black", linestyle=("--", ":")[min(i, 1)], linewidth=1.2, label=label, zorder=5)
+
+
 # one line and one legend entry per table row: beyond this many the legend covers the panels and the lines
 # cannot be told apart (experiment=anchored has 80 rows; its own figure draws them a fault per panel)
 MAX_ROWS = 24
@@ -82,8 +94,11 @@ def robustness_figure(table: pd.DataFrame, path: Path, metric: str = "mean_rel_d
     ]
     labels = [row_label(table.index.names, list(r.values())) for r in keys]
     fig, axes = panels(len(params))
+    bound = table.attrs.get("bound")
     for ax, param in zip(axes[0], params):
         draw_rows(ax, table, param, levels, styles, labels)
+        if bound is not None and not bound.empty and metric == "mean_rel_dev":
+            draw_bound(ax, bound, param, levels)
         noise_axis(ax, levels, METRICS[metric], param)
     # rows of one colour are next to each other in the table: one legend column per colour, its K down it
     grouped = ks and len(labels) == len(colours) * len(ks) and len(colours) <= 4

@@ -254,3 +254,19 @@ def cell_rows(table: pd.DataFrame, compare: str | None, cell, missing="n/a") -> 
             )
         out.append(shown(as_tuple(label)) + cells + [str(int(row[(c, "", "")])) for c in ("n_seeds", "n_failed")])
     return out
+
+
+BOUND_LABEL = "Cramér-Rao bound"
+
+
+def bound_table(df: pd.DataFrame, split: str = "test", column: str = "bound") -> pd.DataFrame:
+    """The Cramér-Rao bound of collect's long form: the expected mean relative deviation of an efficient unbiased
+    estimator on the split's windows (model.metrics.bound_fields), averaged over the completed runs that recorded
+    it (each seed scores its own seeded windows). Rows: K; columns (noise_std, parameter). Empty when no run
+    recorded a bound (baselines and networks alike record it; older records do not)."""
+    if column not in df.columns:
+        return pd.DataFrame()
+    sub = df[(df.status == "completed") & (df.split == split)].dropna(subset=[column])
+    if sub.empty:
+        return pd.DataFrame()
+    return sub.groupby(["windows", "noise_std", "parameter"])[column].mean().unstack(["noise_std", "parameter"])

@@ -3,12 +3,14 @@ predictions behind them, per road class, and the tables a run prints."""
 
 from __future__ import annotations
 
+import numpy as np
 import pandas as pd
 
 from hybrid_sysid.core import stop
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.model.base import SplitPredictor
-from hybrid_sysid.model.metrics import summarise
+from hybrid_sysid.model.metrics import PARAMETERS, bound_fields, summarise
+from hybrid_sysid.physics.eiv import crb_relative_std
 
 
 def score(
@@ -18,12 +20,18 @@ def score(
     recording; train and val on one window), plus one prediction row per recording and evaluation.
 
     ``model``: a network's IdentificationModule or a baseline (model.base.SplitPredictor)."""
-    results, frames = [], []
+    results, frames, bounds = [], [], {}
     evals = [("train", 0.0, 1), ("val", 0.0, 1)] + [("test", float(s), int(k)) for s in noise_levels for k in windows]
     for split, std, k in evals:
         stop.check()  # a safe point (core.stop)
         pred, true = model.predict_split(dm, split, std, windows=k)
-        results += summarise(pred, true, split=split, noise_std=std, windows=k)
+        rows = summarise(pred, true, split=split, noise_std=std, windows=k)
+        if split == "test":
+            if k not in bounds:
+                bounds[k] = recording_bounds(dm, split, k)
+            for row, fields in zip(rows, bound_fields(pred, true, std, *bounds[k])):
+                row.update(fields)
+        results += rows
         rows = dm.rows(split)
         frames.append(
             pd.DataFrame(
@@ -42,6 +50,27 @@ def score(
             )
         )
     return results, pd.concat(frames, ignore_index=True)
+
+
+def recording_bounds(dm: QuarterCarDataModule, split: str, windows: int) -> tuple[np.ndarray, np.ndarray]:
+    """Per recording of ``split``, the Cramér-Rao relative standard deviation of (p1, p2) per unit noise std (n, 2),
+    with noise on both channels (the simulator's ratio, 1) and on the seat alone: computed on the split's clean
+    evaluation windows at the true p (physics.eiv), the model the recording's (baselines.errors_in_variables).
+
+    With K windows per recording, their information adds as if their noise were independent: an estimator that
+    averages K overlapping windows of one noisy recording cannot do better, so the bound stays a bound."""
+    from hybrid_sysid.baselines.errors_in_variables import eiv_model
+
+    batch = dm.eval_batch(split, 0.0, windows=windows)
+    seat, body = (batch["signals"][:, i].numpy().astype(np.float64) for i in (0, 1))
+    p = batch["params"].numpy().astype(np.float64)
+    spec = dm.dataset.spec
+    out = []
+    for ratio in (1.0, 0.0):
+        s = crb_relative_std(seat, body, p, spec.dt, noise_ratio=ratio, model=eiv_model(spec.measurement))
+        with np.errstate(divide="ignore"):
+            out.append(1.0 / np.sqrt((1.0 / s**2).reshape(-1, windows, len(PARAMETERS)).sum(axis=1)))
+    return out[0], out[1]
 
 
 def by_road_class(predictions: pd.DataFrame) -> list[dict]:

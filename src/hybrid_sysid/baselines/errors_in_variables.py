@@ -1,0 +1,112 @@
+"""The errors-in-variables fit of each window as a baseline (``baseline=eiv``, ``baseline=eiv_map``): no network, no
+labels, no training. Plain numpy in float64 (physics.eiv holds the fit; this class scores it like a network).
+
+Least squares regresses the seat on regressors that carry the body channel's noise; the errors-in-variables maximum
+likelihood treats both channels as noisy and needs only the ratio of their noise variances (``noise_ratio``, 1 in
+the simulator). With ``prior`` set, the same likelihood plus a Gaussian prior on log p (MAP), its moments those of
+the simulator's draws of the seat (physics.eiv.log_p_prior): the mass range and the seat constants' spread.
+
+Each fit starts from the window's band-passed least squares (physics.seat_fit), which is also what a window whose
+likelihood fit is not defined keeps. The model follows the recording: the simulator's exact discrete transfer
+function for stepped recordings ("consistent", and "paper", where it is only close), the continuous one for samples
+of continuous motion ("continuous") (docs/baselines.md).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from hybrid_sysid.core.checks import bad, check_number
+from hybrid_sysid.data.spec import check_filter_fits, window_starts
+from hybrid_sysid.physics.eiv import fit_eiv, log_p_prior
+from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
+from hybrid_sysid.physics.seat_fit import fit_windows
+
+PRIOR_KEYS = ("m3_min", "m3_max", "c3", "k3", "seat_spread")
+PRIOR_FLOOR = 1e-4  # added in quadrature to the prior's standard deviations of log p
+
+
+def eiv_model(measurement: str) -> str:
+    """The transfer function that describes a recording of this measurement (physics.eiv's ``model``)."""
+    return "continuous" if measurement == "continuous" else "discrete"
+
+
+class ErrorsInVariablesFit:
+    """The errors-in-variables ML (or MAP) estimate of (p1, p2) per evaluation window, scored like a network.
+
+    noise_ratio: sigma_body^2 / sigma_seat^2, >= 0 (0: output error, the body channel taken as exact).
+    prior: None (maximum likelihood), or the simulator's draws of the seat as a dict of ``PRIOR_KEYS`` (conf/baseline/
+        eiv_map.yaml fills it from the data and car sections): the fit is then the MAP estimate with the Gaussian in
+        log p of those draws' moments, and sigma from the likelihood fit's residual.
+    low_hz, high_hz, taps: the band-pass of the least-squares start (the ls_bandpass baseline's band).
+    With K windows per recording (evaluation.windows) the K estimates are averaged, as a network's are.
+    """
+
+    fit_seconds = 0.0
+
+    def __init__(
+        self,
+        noise_ratio: float = 1.0,
+        prior: dict | None = None,
+        dt: float = 0.005,
+        low_hz: float = 4.0,
+        high_hz: float = 20.0,
+        taps: int = 151,
+    ):
+        self.noise_ratio = check_number("noise_ratio", noise_ratio, 0, 1e6, unit="sigma_body^2 / sigma_seat^2")
+        check_bandpass(low_hz, high_hz, taps, dt)
+        self.dt, self.taps = float(dt), int(taps)
+        self.fir = bandpass_taps(low_hz, high_hz, taps, dt)
+        self.prior_settings = None if prior is None else dict(prior)
+        self.prior = None
+        if prior is not None:
+            missing = [k for k in PRIOR_KEYS if k not in prior]
+            if missing:
+                bad("prior", dict(prior), f"a dict with {', '.join(PRIOR_KEYS)} (missing {', '.join(missing)})")
+            mean, cov = log_p_prior(*(prior[k] for k in PRIOR_KEYS))
+            # without a spread of the seat's constants (the paper's data) p1 / p2 = C3 / K3 is fixed and the prior's
+            # covariance singular: a floor of 1e-4 on its standard deviations keeps that constraint, as a prior
+            self.prior = (mean, cov + PRIOR_FLOOR**2 * np.eye(2))
+        self.fit_seconds = 0.0
+
+    def check_lengths(self, window: int, n_steps: int) -> None:
+        """The least-squares start's band-pass must leave enough samples of a window."""
+        check_filter_fits(self.taps, window, "taps", "data.window")
+
+    def fit_windows(self, seat, body, dt: float, measurement: str) -> tuple[np.ndarray, np.ndarray]:
+        """(p, se), each (n, 2) float64, of windows (n, W) of seat and body acceleration: the estimate and its relative
+        standard error. Where the likelihood fit is not defined, the least-squares start and its standard error;
+        NaN p and infinite se where neither is."""
+        seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
+        start = fit_windows(seat, body, dt, measurement, self.fir)
+        out = fit_eiv(
+            seat, body, dt, noise_ratio=self.noise_ratio, model=eiv_model(measurement), p0=start.p, prior=self.prior
+        )
+        ok = np.isfinite(out.p).all(axis=1, keepdims=True)
+        return np.where(ok, out.p, start.p), np.where(ok, out.se, start.se)
+
+    def fit(self, seat, body, dt: float, measurement: str) -> np.ndarray:
+        """(n, 2) estimates of windows (n, W) of seat and body acceleration (``fit_windows``' p)."""
+        return self.fit_windows(seat, body, dt, measurement)[0]
+
+    def estimate(self, seat, body, dt: float, measurement: str, window: int, windows: int) -> np.ndarray:
+        """(K, 2) estimates of one recording at K evenly spaced windows (model.base.Baseline)."""
+        starts = window_starts(len(seat), window, windows)
+        seat, body = (np.stack([np.asarray(x, dtype=np.float64)[s : s + window] for s in starts]) for x in (seat, body))
+        return self.fit(seat, body, dt, measurement)
+
+    def predict_split(self, dm, split: str, noise_std: float, limit: int | None = None, windows: int = 1):
+        """Estimates and truth, float64 (n, 2), one row per recording (model.base.SplitPredictor)."""
+        begin = time.perf_counter()
+        dm.setup()
+        self.check_lengths(dm.window, dm.data.n_steps)
+        batch = dm.eval_batch(split, noise_std, limit, windows=windows)
+        seat, body = (batch["signals"][:, i].numpy().astype(np.float64) for i in (0, 1))
+        spec = dm.dataset.spec
+        p = self.fit(seat, body, spec.dt, spec.measurement)
+        pred = p.reshape(-1, windows, 2).mean(axis=1)
+        true = batch["params"].numpy().astype(np.float64).reshape(-1, windows, 2)[:, 0]
+        self.fit_seconds += time.perf_counter() - begin
+        return pred, true
