@@ -10,6 +10,10 @@ Each fit starts from the window's band-passed least squares (physics.seat_fit), 
 likelihood fit is not defined keeps. The model follows the recording: the simulator's exact discrete transfer
 function for stepped recordings ("consistent", and "paper", where it is only close), the continuous one for samples
 of continuous motion ("continuous") (docs/baselines.md).
+
+With ``fix`` (``estimator=eiv_fix``, ``estimator=eiv_map_fix``: the fault's fix, as ``estimator=ls_fix`` picks it)
+a recording fault is one more parameter of the same likelihood (physics.eiv, "Fixes"), and the start is the
+band-passed least squares with the same fix (baselines.fixes).
 """
 
 from __future__ import annotations
@@ -18,8 +22,11 @@ import time
 
 import numpy as np
 
-from hybrid_sysid.core.checks import bad, check_number
+from hybrid_sysid.baselines.fixes import fit_fixed
+from hybrid_sysid.core.checks import bad, check_choice, check_number
+from hybrid_sysid.core.options import FIXES
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
+from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.eiv import fit_eiv, log_p_prior
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 from hybrid_sysid.physics.seat_fit import fit_windows
@@ -41,6 +48,8 @@ class ErrorsInVariablesFit:
         eiv_map.yaml fills it from the data and car sections): the fit is then the MAP estimate with the Gaussian in
         log p of those draws' moments, and sigma from the likelihood fit's residual.
     low_hz, high_hz, taps: the band-pass of the least-squares start (the ls_bandpass baseline's band).
+    fix: "none", or the recording fault fitted with p ("gain", "skew", "hardening"; physics.eiv); ``skew_max``:
+        the largest time offset of the body sensor, seconds, that "skew" considers.
     With K windows per recording (evaluation.windows) the K estimates are averaged, as a network's are.
     """
 
@@ -54,8 +63,13 @@ class ErrorsInVariablesFit:
         low_hz: float = 4.0,
         high_hz: float = 20.0,
         taps: int = 151,
+        fix: str = "none",
+        skew_max: float = 0.02,
     ):
         self.noise_ratio = check_number("noise_ratio", noise_ratio, 0, 1e6, unit="sigma_body^2 / sigma_seat^2")
+        check_choice("fix", fix, FIXES)
+        self.fix = fix
+        self.skew_max = check_number("skew_max", skew_max, 0, unit="seconds")
         check_bandpass(low_hz, high_hz, taps, dt)
         self.dt, self.taps = float(dt), int(taps)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt)
@@ -77,15 +91,30 @@ class ErrorsInVariablesFit:
 
     def fit_windows(self, seat, body, dt: float, measurement: str) -> tuple[np.ndarray, np.ndarray]:
         """(p, se), each (n, 2) float64, of windows (n, W) of seat and body acceleration: the estimate and its relative
-        standard error. Where the likelihood fit is not defined, the least-squares start and its standard error;
-        NaN p and infinite se where neither is."""
+        standard error. Where the likelihood fit is not defined, the least-squares start and its standard error
+        (with a fix: the least squares with that fix, whose standard error is not known, so infinite, or where that
+        is not defined either the plain least squares); NaN p and infinite se where none is."""
         seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
         start = fit_windows(seat, body, dt, measurement, self.fir)
+        p0, se0 = start.p, start.se
+        if self.fix != "none":
+            rel_vel, rel_disp = relative_states(seat, body, dt, measurement)
+            fixed = fit_fixed(self.fix, seat, body, rel_vel, rel_disp, dt, measurement, self.fir, self.skew_max)
+            defined = np.isfinite(fixed).all(axis=1, keepdims=True)
+            p0, se0 = np.where(defined, fixed, p0), np.where(defined, np.inf, se0)
         out = fit_eiv(
-            seat, body, dt, noise_ratio=self.noise_ratio, model=eiv_model(measurement), p0=start.p, prior=self.prior
+            seat,
+            body,
+            dt,
+            noise_ratio=self.noise_ratio,
+            model=eiv_model(measurement),
+            p0=p0,
+            prior=self.prior,
+            fix=self.fix,
+            skew_max=self.skew_max,
         )
         ok = np.isfinite(out.p).all(axis=1, keepdims=True)
-        return np.where(ok, out.p, start.p), np.where(ok, out.se, start.se)
+        return np.where(ok, out.p, p0), np.where(ok, out.se, se0)
 
     def fit(self, seat, body, dt: float, measurement: str) -> np.ndarray:
         """(n, 2) estimates of windows (n, W) of seat and body acceleration (``fit_windows``' p)."""
