@@ -1,6 +1,8 @@
-"""model=anchored (model/anchored.py): the window's band-passed least-squares fit, gated against a network by the
-fit's own standard error. Exact on clean consistent windows before any training; the gate as its formula says,
-against a fit computed here; served by load_estimator, hybrid-sysid-predict, evaluation and init_from."""
+"""model=anchored (model/anchored.py): the window's fit, errors-in-variables (anchor eiv) or band-passed least squares
+(anchor ls), gated against a network by the fit's own standard error. Exact on clean consistent windows before any
+training with either anchor; the gate as its formula says, against a fit computed here; the eiv anchor is
+ErrorsInVariablesFit's, with the simulated fault's fix; served by load_estimator, hybrid-sysid-predict, evaluation
+and init_from."""
 
 import json
 
@@ -10,9 +12,12 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
+from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
+from hybrid_sysid.model import anchored
 from hybrid_sysid.model.anchored import AnchoredCNN
 from hybrid_sysid.physics import relative_states, road_profiles, simulate
 from hybrid_sysid.physics.filters import bandpass_taps
+from hybrid_sysid.physics.seat_fit import fit_windows
 
 from helpers.estimator_run import predict, trained_run
 
@@ -40,10 +45,11 @@ def net(seed=0, **kwargs):
     return AnchoredCNN(P_MIN, P_MAX, dt=DT, **kwargs).eval()
 
 
+@pytest.mark.parametrize("anchor", ["eiv", "ls"])
 @pytest.mark.parametrize("seed", [0, 1, 2])
-def test_clean_windows_give_the_true_p_before_any_training_whatever_the_head(seed):
+def test_clean_windows_give_the_true_p_before_any_training_whatever_the_head(seed, anchor):
     acc, truth = windows()
-    model = net(seed)
+    model = net(seed, anchor=anchor)
     with torch.no_grad():
         model.head[-1].bias.copy_(torch.tensor([-20.0, 20.0, -20.0, -20.0]))  # p_net at its ends, tau at its floor
         p = model(torch.from_numpy(acc)).double().numpy()
@@ -52,10 +58,10 @@ def test_clean_windows_give_the_true_p_before_any_training_whatever_the_head(see
 
 def test_the_gate_weighs_the_fit_by_its_own_standard_error():
     """With the head's last layer zero, p_net is the centre of its range and tau = sqrt(tau_min tau_max); the
-    fit and its standard error are computed here from the window (integrated on its own, band-passed by
-    np.convolve, numpy's lstsq, s^2 (A^T A)^-1)."""
+    least-squares fit and its standard error are computed here from the window (integrated on its own,
+    band-passed by np.convolve, numpy's lstsq, s^2 (A^T A)^-1)."""
     acc, _ = windows(noise=0.02)
-    model = net()
+    model = net(anchor="ls")
     with torch.no_grad():
         model.head[-1].weight.zero_()
         model.head[-1].bias.zero_()
@@ -76,12 +82,79 @@ def test_the_gate_weighs_the_fit_by_its_own_standard_error():
     assert (np.abs(p - mid) > 1e-3 * mid).any()  # the fit moved some of them
 
 
-def test_a_window_without_a_fit_gets_the_network():
-    model = net()
+@pytest.mark.parametrize("anchor", ["eiv", "ls"])
+def test_a_window_without_a_fit_gets_the_network(anchor):
+    model = net(anchor=anchor)
     with torch.no_grad():
         p = model(torch.zeros(2, 2, W)).numpy()
     lo, hi = np.exp(model.log_lo.numpy()), np.exp(model.log_lo.numpy() + model.log_span.numpy())
     assert np.isfinite(p).all() and (p >= lo).all() and (p <= hi).all()
+
+
+def test_the_eiv_anchor_is_the_errors_in_variables_fit_with_the_least_squares_statistics():
+    """p and se of ErrorsInVariablesFit (noise ratio 1, the model's band as its start) on the same windows, the
+    unexplained share and correlation of the band-passed least squares; the gate weighs that p by that se."""
+    acc, _ = windows(noise=0.02, n=16)
+    model = net(anchor="eiv")
+    x = acc.astype(np.float64)
+    fit = model.anchor(torch.from_numpy(acc))
+    p, se = ErrorsInVariablesFit(noise_ratio=1.0, dt=DT).fit_windows(x[:, 0], x[:, 1], DT, "consistent")
+    ls = fit_windows(x[:, 0], x[:, 1], DT, "consistent", bandpass_taps(4.0, 20.0, 151, DT))
+    assert np.array_equal(fit.p, p) and np.array_equal(fit.se, se)
+    assert np.array_equal(fit.unexplained, ls.unexplained) and np.array_equal(fit.correlation, ls.correlation)
+    assert not np.array_equal(fit.p, ls.p)  # the anchor is not the least squares under noise
+    with torch.no_grad():
+        model.head[-1].weight.zero_()
+        model.head[-1].bias.zero_()
+        out = model(torch.from_numpy(acc)).double().numpy()
+    mid = np.exp(model.log_lo.double().numpy() + model.log_span.double().numpy() / 2)
+    w = 1e-3 / (1e-3 + se**2)  # tau^2 = tau_min tau_max
+    np.testing.assert_allclose(out, w * p + (1 - w) * mid, rtol=2e-5)
+
+
+def test_the_config_anchors_on_eiv_and_model_net_anchor_ls_is_the_least_squares_one(make_cfg):
+    from hybrid_sysid.training.build import build_model
+
+    acc, _ = windows(noise=0.02, n=4)
+    x = acc.astype(np.float64)
+    ls = fit_windows(x[:, 0], x[:, 1], DT, "consistent", bandpass_taps(4.0, 20.0, 151, DT))
+    built = {}
+    for anchor in ("eiv", "ls"):
+        overrides = ["model=anchored", "data.seat_spread=0.3"] + ([] if anchor == "eiv" else ["model.net.anchor=ls"])
+        cfg = make_cfg(*overrides)
+        assert cfg.model.net.anchor == anchor and cfg.model.net.fix == "none"
+        torch.manual_seed(0)
+        built[anchor] = build_model(cfg).net.eval()
+    fit = built["ls"].anchor(torch.from_numpy(acc))
+    assert all(np.array_equal(a, b) for a, b in zip(fit, ls))
+    assert not np.array_equal(built["eiv"].anchor(torch.from_numpy(acc)).p, ls.p)
+    # the least-squares anchor is the model as it was before the choice existed, to the bit
+    cfg = make_cfg("model=anchored", "data.seat_spread=0.3")
+    net_args = {k: v for k, v in cfg.model.net.items() if k not in ("_target_", "anchor", "fix")}
+    torch.manual_seed(0)
+    before = AnchoredCNN(**net_args).eval()
+    with torch.no_grad():
+        assert torch.equal(before(torch.from_numpy(acc)), built["ls"](torch.from_numpy(acc)))
+
+
+def test_the_fault_the_config_simulates_reaches_the_errors_in_variables_fit(make_cfg, monkeypatch):
+    """fix: ${fault_fix:} in conf/model/anchored.yaml; the fit gets ``fix`` when there is a fault, nothing
+    more when there is none (so a fit without the argument still serves clean data)."""
+    given = []
+
+    class Recorder(ErrorsInVariablesFit):
+        def __init__(self, **arguments):
+            given.append(arguments)
+
+    monkeypatch.setattr(anchored, "ErrorsInVariablesFit", Recorder)
+    for fault, fix in (("clean", "none"), ("gain", "gain"), ("skewed", "skew"), ("hardening", "hardening")):
+        cfg = make_cfg("model=anchored", f"fault={fault}")
+        assert cfg.model.net.fix == fix
+        net_args = {k: v for k, v in cfg.model.net.items() if k != "_target_"}
+        AnchoredCNN(**net_args)
+        assert given[-1].get("fix") == (None if fix == "none" else fix) and given[-1]["noise_ratio"] == 1.0
+    AnchoredCNN(P_MIN, P_MAX, dt=DT, anchor="ls", fix="gain")  # the least-squares anchor has no fix to take
+    assert len(given) == 4
 
 
 def test_bad_values_are_one_line_errors_naming_the_key():
@@ -89,6 +162,10 @@ def test_bad_values_are_one_line_errors_naming_the_key():
 
     with pytest.raises(ConfigError, match=r"^tau_max = 0.0005 is not allowed"):
         AnchoredCNN(P_MIN, P_MAX, dt=DT, tau_max=5e-4)
+    with pytest.raises(ConfigError, match=r"^anchor = 'tls' is not allowed: one of eiv, ls"):
+        AnchoredCNN(P_MIN, P_MAX, dt=DT, anchor="tls")
+    with pytest.raises(ConfigError, match=r"^fix = 'delay' is not allowed"):
+        AnchoredCNN(P_MIN, P_MAX, dt=DT, fix="delay")
     with pytest.raises(ConfigError, match=r"^filter.taps = 150 is not allowed"):
         AnchoredCNN(P_MIN, P_MAX, dt=DT, filter={"low_hz": 4.0, "high_hz": 20.0, "taps": 150})
     assert AnchoredCNN.window_bounds(n_layers=4, filter={"taps": 151})[0] == 160  # the band-pass leaves 10

@@ -1,6 +1,7 @@
-"""objective=cross_segment: the labelled objective's L1 to the least-squares p of the rest of the recording, each
-row weighed by that fit's standard error. References: the formula in numpy, the labelled objective on clean
-recordings, and a run whose labels are garbage (the same weights to the bit)."""
+"""objective=cross_segment: the labelled objective's L1 to the fit of the rest of the recording (errors-in-variables or
+least squares: tests/data/test_outside_eiv.py), each row weighed by that fit's standard error. References: the
+formula in numpy, the labelled objective on clean recordings, and a run whose labels are garbage (the same weights
+to the bit)."""
 
 import math
 
@@ -39,9 +40,10 @@ def test_the_loss_is_the_weighted_l1_with_undefined_rows_left_out():
     loss.backward()  # finite gradients, whatever the undefined row
 
 
-def test_on_clean_recordings_it_is_the_labelled_objective():
+@pytest.mark.parametrize("target", ["eiv", "ls"])
+def test_on_clean_recordings_it_is_the_labelled_objective(target):
     spec = DatasetSpec(n_roads=6, n_masses=4, n_steps=800, seed=5, seat_spread=0.3)
-    obj = objective()
+    obj = objective(target=target)
     dm = QuarterCarDataModule(spec, window=200, seed=0, outside_fir=obj.outside_fir)
     batch = dm.eval_batch("train", 0.0)
     pred = batch["params"] * torch.tensor([1.1, 0.95])
@@ -49,7 +51,7 @@ def test_on_clean_recordings_it_is_the_labelled_objective():
     expected = LabelledObjective(SCALE)(pred, batch).item()
     assert obj(pred, batch).item() == pytest.approx(expected, rel=1e-4)
     assert obj.uses_labels is False and obj.monitor == "val/loss" and obj.fir is None
-    assert len(obj.outside_fir) == 101
+    assert len(obj.outside_fir) == 101 and obj.outside_fir.target == target
 
 
 def test_bad_settings_are_named():

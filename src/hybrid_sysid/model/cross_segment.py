@@ -1,10 +1,11 @@
 """A label-free target from the rest of the recording: ``objective=cross_segment`` (docs/label_free.md).
 
 The label_free objective fits the network to each window's own least-squares p, a function of the very samples the
-network reads: the target carries that window's noise, and the network learns it. Here the target is the
-band-passed least-squares p over the recording's samples outside the window (``p_out``), whose sensor noise is
-independent of the window's. The data module computes it (hybrid_sysid.data.windows, ``WindowCutter.outside``)
-when an objective asks through ``outside_fir``.
+network reads: the target carries that window's noise, and the network learns it. Here the target is the fit of the
+seat over the recording's samples outside the window (``p_out``), whose sensor noise is independent of the
+window's: the errors-in-variables maximum likelihood, or the band-passed least squares (``target``). The data
+module computes it (hybrid_sysid.data.outside, ``WindowCutter.outside``) when an objective asks through
+``outside_fir``.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import torch
 from torch import nn
 
 from hybrid_sysid.core.checks import ConfigError, check_number, check_pair
+from hybrid_sysid.data.outside import outside_taps
 from hybrid_sysid.model.objectives import LABEL_FREE
 from hybrid_sysid.physics.filters import filter_taps
 
@@ -23,8 +25,13 @@ from hybrid_sysid.physics.filters import filter_taps
 class CrossSegmentObjective(nn.Module):
     """Mean over the batch of sum_i w_i |p_i - p_out_i| / p_scale_i, without a label read.
 
-    p_out: the band-passed least-squares fit of the seat equation over the samples of the window's recording whose
-    whole FIR support lies outside the window; se_out: that fit's relative standard error (physics.seat_fit).
+    p_out: the fit of the seat over the samples of the window's recording outside the window; se_out: that fit's
+    relative standard error. ``target``: "eiv", the errors-in-variables maximum likelihood of the two outside
+    segments together (data.outside.fit_joined), started from "ls"; "ls", the band-passed least squares over the
+    filtered samples whose whole FIR support lies outside the window (physics.seat_fit). Least squares is biased
+    towards zero under noise on the body channel, and the network would learn that bias; the likelihood fit is
+    consistent under it (docs/label_free.md). The constructor's default is "ls": a saved config written before the
+    argument existed was trained with it. conf/objective/cross_segment.yaml sets "eiv".
     w_i = 1 / (se_out_i + ``floor``), divided by its mean over the batch, per parameter: each parameter keeps the
     total weight the labelled objective gives it, and within it a row counts by how well its outside fit is
     determined. The floor stops rounding from ranking near-exact fits: below it (1% by default) every fit counts
@@ -35,16 +42,19 @@ class CrossSegmentObjective(nn.Module):
     uses_labels = False
     monitor = LABEL_FREE
     fir = None  # the network's window needs no filtered signals: only the outside fit is band-passed
-    outside_fir: np.ndarray | None = None  # set below: the band-pass of the outside fit
+    outside_fir: np.ndarray | None = None  # set below: the band-pass of the outside fit, tagged with ``target``
 
-    def __init__(self, p_scale: Sequence[float], filter: dict, dt: float | None = None, floor: float = 0.01):
+    def __init__(
+        self, p_scale: Sequence[float], filter: dict, dt: float | None = None, floor: float = 0.01, target: str = "ls"
+    ):
         super().__init__()
         self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
         self.floor = check_number("floor", floor, 0, low_open=True, unit="a relative standard error")
         if dt is None:
             raise ConfigError("dt", missing=True, allowed="the band-pass needs the data's step (${data.dt})")
         self.filter = dict(filter)
-        self.outside_fir = filter_taps(self.filter, dt)
+        self.target = target
+        self.outside_fir = outside_taps(filter_taps(self.filter, dt), target)
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         if "p_out" not in batch:
