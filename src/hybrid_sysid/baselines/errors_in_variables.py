@@ -27,17 +27,29 @@ from hybrid_sysid.core.checks import bad, check_choice, check_number
 from hybrid_sysid.core.options import FIXES
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
-from hybrid_sysid.physics.eiv import fit_eiv, log_p_prior
+from hybrid_sysid.physics.eiv import P_HI, P_LO, fit_eiv, log_p_prior
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 from hybrid_sysid.physics.seat_fit import fit_windows
 
 PRIOR_KEYS = ("m3_min", "m3_max", "c3", "k3", "seat_spread")
+EDGE = 0.05  # in log p: a fit this close to its box's edge ran into it
 PRIOR_FLOOR = 1e-4  # added in quadrature to the prior's standard deviations of log p
 
 
 def eiv_model(measurement: str) -> str:
     """The transfer function that describes a recording of this measurement (physics.eiv's ``model``)."""
     return "continuous" if measurement == "continuous" else "discrete"
+
+
+def _trusted(fit, start: np.ndarray) -> np.ndarray:
+    """(n, 1): the likelihood fit converged inside its box, away from its edges, and within a factor 2 of its start.
+    On noisy windows of smooth roads the likelihood has spurious minima at the box's edges, with a small se there."""
+    lo, hi = np.log(P_LO), np.log(P_HI)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        theta = np.log(fit.p)
+        inside = ((theta > lo + EDGE) & (theta < hi - EDGE)).all(axis=1)
+        near = (np.abs(theta - np.log(start)) < np.log(2.0)).all(axis=1)
+    return (fit.converged & inside & (near | ~np.isfinite(start).all(axis=1)))[:, None]
 
 
 class ErrorsInVariablesFit:
@@ -89,11 +101,16 @@ class ErrorsInVariablesFit:
         """The least-squares start's band-pass must leave enough samples of a window."""
         check_filter_fits(self.taps, window, "taps", "data.window")
 
-    def fit_windows(self, seat, body, dt: float, measurement: str) -> tuple[np.ndarray, np.ndarray]:
+    def fit_windows(
+        self, seat, body, dt: float, measurement: str, guarded: bool = False
+    ) -> tuple[np.ndarray, np.ndarray]:
         """(p, se), each (n, 2) float64, of windows (n, W) of seat and body acceleration: the estimate and its relative
         standard error. Where the likelihood fit is not defined, the least-squares start and its standard error
         (with a fix: the least squares with that fix, whose standard error is not known, so infinite, or where that
-        is not defined either the plain least squares); NaN p and infinite se where none is."""
+        is not defined either the plain least squares); NaN p and infinite se where none is.
+
+        ``guarded``: also where the likelihood fit is not to be trusted (``_trusted``): an anchor weighs the fit by
+        its se, and a fit run to the edge of its box on a barely informative window comes with a small se."""
         seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
         start = fit_windows(seat, body, dt, measurement, self.fir)
         p0, se0 = start.p, start.se
@@ -114,6 +131,8 @@ class ErrorsInVariablesFit:
             skew_max=self.skew_max,
         )
         ok = np.isfinite(out.p).all(axis=1, keepdims=True)
+        if guarded:
+            ok &= _trusted(out, p0)
         return np.where(ok, out.p, p0), np.where(ok, out.se, se0)
 
     def fit(self, seat, body, dt: float, measurement: str) -> np.ndarray:

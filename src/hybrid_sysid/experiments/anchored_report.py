@@ -13,12 +13,13 @@ from hybrid_sysid.report.tables import METRICS
 
 ESTIMATOR, FAULT = "estimator", "fault"  # the row keys of its sweep (conf/estimator, conf/fault)
 FLOOR = 1e-3  # percent: least squares is exact on clean windows, and a log axis has no zero
+CLASSICAL = ("ls", "eiv")  # the estimators without a network (conf/estimator), drawn dashed
 
 
 def anchored_figure(table: pd.DataFrame, path: Path, k: int = 1) -> None:
-    """Mean relative deviation in percent against the noise level, one line per estimator (least squares dashed),
-    error bars the std over seeds; values below FLOOR are drawn at it. ``table``: row levels estimator and
-    optionally fault and K; columns (noise, parameter, statistic)."""
+    """Mean relative deviation in percent against the noise level, one line per estimator (the classical fits
+    dashed), error bars the std over seeds, the Cramér-Rao bound dotted; values below FLOOR are drawn at it.
+    ``table``: row levels estimator and optionally fault and K; columns (noise, parameter, statistic)."""
     import matplotlib.pyplot as plt
 
     from hybrid_sysid.report.plotting import PERCENT, figure_legend, noise_axis, save_figure
@@ -38,7 +39,7 @@ def anchored_figure(table: pd.DataFrame, path: Path, k: int = 1) -> None:
                 line = sub[sub.index.get_level_values(ESTIMATOR) == name]
                 mean = [PERCENT * float(line[(n, param, "mean")].iloc[0]) for n in levels]
                 err = [PERCENT * float(line[(n, param, "std")].fillna(0.0).iloc[0]) for n in levels]
-                style = "--" if str(name).startswith("ls") else "-"
+                style = "--" if str(name).startswith(CLASSICAL) else "-"
                 ax.errorbar(
                     range(len(levels)),
                     [max(m, FLOOR) for m in mean],
@@ -49,6 +50,11 @@ def anchored_figure(table: pd.DataFrame, path: Path, k: int = 1) -> None:
                     capsize=2,
                     label=str(name),
                 )
+            bound = table.attrs.get("bound")
+            if bound is not None and not bound.empty and k in bound.index:
+                # pooled over the faults' runs: each fault's clean windows differ from the others' by its draws only
+                values = [PERCENT * float(bound.loc[k].get((n, param), float("nan"))) for n in levels]
+                ax.plot(range(len(levels)), [max(v, FLOOR) for v in values], "k:", lw=1.2, label="Cramér-Rao bound")
             title = param if fault is None else f"{fault}: {param}"
             noise_axis(ax, levels, METRICS["mean_rel_dev"], title)
     figure_legend(fig, ncol=4)

@@ -110,7 +110,7 @@ class AnchoredCNN(FastCNN):
         fit = fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement, self.fir)
         if self.eiv is None:
             return fit
-        p, se = self.eiv.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
+        p, se = self.eiv.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement, guarded=True)
         return SeatFit(p, se, fit.unexplained, fit.correlation)
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:

@@ -724,7 +724,16 @@ def fit_eiv(
             theta, V, h, conv = solve(theta)
             kappa = V / dof  # N sigma^2: V's scale in the likelihood
             if prior is not None:
-                theta, V, h, conv = solve(theta, (mean, prec), kappa)
+                # two starts, the ML fit and the prior's mean, the lower posterior kept: where the data leave p
+                # loose the ML fit may sit at the box's edge, in another basin than the one the prior favours
+                first = solve(theta, (mean, prec), kappa)
+                centre = theta.copy()
+                centre[:, :2] = np.clip(mean[:2], lo[:2], hi[:2])
+                second = solve(centre, (mean, prec), kappa)
+                better = _posterior(second, mean, prec, kappa) < _posterior(first, mean, prec, kappa)
+                theta, V, h, conv = (
+                    np.where(better.reshape((-1,) + (1,) * (a.ndim - 1)), b, a) for a, b in zip(first, second)
+                )
                 h = h + kappa[:, None, None] * prec
             ok = _positive(h) & np.isfinite(theta).all(axis=1) & np.isfinite(V) & (kappa >= 0)
             if fault is not None:
@@ -736,6 +745,15 @@ def fit_eiv(
             cost[rows] = V
             converged[rows] = conv
     return EivFit(p, se, sigma2, cost, converged, fault)
+
+
+def _posterior(solved, mean, prec, kappa):
+    """The MAP criterion V + kappa (theta - mean)' prec (theta - mean) of ``solve``'s result, per window; inf where
+    the fit failed."""
+    theta, V = solved[0], solved[1]
+    d = theta - mean
+    out = V + kappa * np.einsum("ni,ij,nj->n", d, prec, d)
+    return np.where(np.isfinite(out), out, np.inf)
 
 
 def _fault_problem(fix, seat, body, theta_p, grid, lam, dt, model, lo, hi, max_iter, tol):
