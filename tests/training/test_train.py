@@ -70,6 +70,18 @@ def test_same_seed_same_numbers_other_seed_other_numbers(make_cfg, tmp_path, tin
     assert other["results"] != record["results"]
 
 
+def test_a_run_puts_torchs_thread_count_back(make_cfg, tmp_path):
+    """A run with trainer.threads = 1 trains on one thread (its record says so) and leaves the process on the
+    count it had; the next run without the key then runs on that count, as in a new process."""
+    import torch
+
+    before = torch.get_num_threads()
+    pinned = train(make_cfg(*TINY, "trainer.max_steps=2", "trainer.threads=1"), tmp_path / "pinned")
+    assert pinned["threads"] == 1 and torch.get_num_threads() == before
+    default = train(make_cfg(*TINY, "trainer.max_steps=2"), tmp_path / "default")
+    assert default["threads"] == before
+
+
 def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_path, tiny_run):
     record, _ = tiny_run
     run = train(make_cfg(*TINY, "evaluation.windows=[1,4]"), tmp_path / "k")
