@@ -16,3 +16,22 @@ def clean_recordings():
     rel_vel, rel_disp = relative_states(seat, body, dt, "consistent")
     p = np.stack(QuarterCar().parameters(masses), axis=-1)
     return {"dt": dt, "seat": seat, "body": body, "rel_vel": rel_vel, "rel_disp": rel_disp, "p": p}
+
+
+@pytest.fixture(scope="package")
+def compose_cfg(tmp_path_factory):
+    """The app's config composed from overrides, with one dataset cache for this folder's tests (each dataset of
+    data=tiny simulated once) and no progress bar."""
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.config import CONF_DIR
+
+    cache = tmp_path_factory.mktemp("cache")
+
+    def _make(*overrides):
+        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+            return compose(
+                config_name="config", overrides=[*overrides, f"data.cache_dir={cache}", "trainer.progress_bar=false"]
+            )
+
+    return _make

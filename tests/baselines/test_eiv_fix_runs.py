@@ -18,23 +18,6 @@ TINY = ["data=tiny", "noise.eval_std=[0.0,0.01]", "evaluation.windows=[1]"]
 FIXES_OF_FAULTS = {"clean": "none", "gain": "gain", "skewed": "skew", "lowpass": "skew", "hardening": "hardening"}
 
 
-@pytest.fixture(scope="module")
-def compose_cfg(tmp_path_factory):
-    from hydra import compose, initialize_config_dir
-
-    from hybrid_sysid.config import CONF_DIR
-
-    cache = tmp_path_factory.mktemp("cache")
-
-    def _make(*overrides):
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            return compose(
-                config_name="config", overrides=[*overrides, f"data.cache_dir={cache}", "trainer.progress_bar=false"]
-            )
-
-    return _make
-
-
 @pytest.mark.parametrize("estimator", ["eiv_fix", "eiv_map_fix"])
 def test_the_presets_take_the_faults_fix(compose_cfg, estimator):
     for fault, fix in FIXES_OF_FAULTS.items():

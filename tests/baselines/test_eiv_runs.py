@@ -21,23 +21,6 @@ TINY = ["data=tiny", "noise.eval_std=[0.0,0.01,0.1]", "evaluation.windows=[1,3]"
 
 
 @pytest.fixture(scope="module")
-def compose_cfg(tmp_path_factory):
-    from hydra import compose, initialize_config_dir
-
-    from hybrid_sysid.config import CONF_DIR
-
-    cache = tmp_path_factory.mktemp("cache")
-
-    def _make(*overrides):
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            return compose(
-                config_name="config", overrides=[*overrides, f"data.cache_dir={cache}", "trainer.progress_bar=false"]
-            )
-
-    return _make
-
-
-@pytest.fixture(scope="module")
 def eiv_run(compose_cfg, tmp_path_factory):
     run_dir = tmp_path_factory.mktemp("eiv") / "run"
     cfg = compose_cfg("baseline=eiv", *TINY)

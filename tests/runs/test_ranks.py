@@ -7,7 +7,7 @@ import pytest
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.core.ranks import RANK_VARIABLES, check_world, is_global_zero
 
-LAUNCHER_VARIABLES = (*RANK_VARIABLES, "WORLD_SIZE", "SLURM_NTASKS", "SLURM_JOB_NAME")
+LAUNCHER_VARIABLES = (*RANK_VARIABLES, "WORLD_SIZE", "SLURM_NTASKS", "SLURM_JOB_NAME", "MASTER_ADDR")
 
 
 @pytest.fixture
@@ -47,6 +47,8 @@ def test_only_the_global_rank_zero_is_zero(env, variables, zero):
         ({"WORLD_SIZE": "2"}, 2, 2),
         ({"SLURM_NTASKS": "2", "SLURM_JOB_NAME": "train"}, 1, 1),
         ({"NODE_RANK": "2", "LOCAL_RANK": "0"}, 2, 1),  # a third node where two were given
+        ({}, 2, 1),  # no launcher starts the other node: the process would wait for it for ever
+        ({}, 3, 2),
     ],
 )
 def test_a_node_count_not_matching_the_launched_processes_names_trainer_num_nodes(env, variables, nodes, devices):
@@ -64,6 +66,7 @@ def test_a_node_count_not_matching_the_launched_processes_names_trainer_num_node
         ({"SLURM_NTASKS": "2", "SLURM_JOB_NAME": "train"}, 2, 1),
         ({"SLURM_NTASKS": "4", "SLURM_JOB_NAME": "interactive"}, 1, 2),  # Lightning ignores an interactive job
         ({"WORLD_SIZE": "8"}, 1, "auto"),  # devices not a count: Lightning's to check
+        ({"MASTER_ADDR": "10.0.0.1", "NODE_RANK": "1"}, 2, 1),  # a node started by hand: Lightning's environment
     ],
 )
 def test_a_matching_node_count_passes(env, variables, nodes, devices):

@@ -12,6 +12,8 @@ import os
 # and LOCAL_RANK; srun SLURM_PROCID; Lightning's environment NODE_RANK and LOCAL_RANK, its global rank being
 # NODE_RANK x devices + LOCAL_RANK)
 RANK_VARIABLES = ("RANK", "SLURM_PROCID", "NODE_RANK", "GROUP_RANK", "LOCAL_RANK")
+# what a process started as one node of several holds (Lightning's environment, started by hand on each node)
+NODE_VARIABLES = ("MASTER_ADDR", "NODE_RANK", "GROUP_RANK")
 
 
 def is_global_zero() -> bool:
@@ -42,6 +44,14 @@ def check_world(num_nodes, devices) -> None:
     if node.isdigit() and int(node) >= nodes:
         bad("trainer.num_nodes", nodes, f"more than this node's rank, NODE_RANK = {node} (one rank per node, from 0)")
     world = launched_world()
+    if world is None and nodes > 1 and not any(os.environ.get(v, "").strip() for v in NODE_VARIABLES):
+        # nothing starts the other nodes' processes: this one would wait for them in the rendezvous, deaf to signals
+        bad(
+            "trainer.num_nodes",
+            nodes,
+            "1 unless a launcher starts a process on every node (launcher=slurm, srun, torchrun; or by hand, with "
+            "MASTER_ADDR and NODE_RANK set on each node)",
+        )
     if world is None or isinstance(devices, bool) or not isinstance(devices, int):
         return
     size, source = world
