@@ -188,3 +188,12 @@ def test_a_constant_recording_the_network_cannot_read_is_not_called_an_overflow(
     with pytest.raises(InputError, match=r"^recording 0 is not allowed: a recording with the motion the network") as e:
         est.predict(np.ones(400), np.ones(400), DT)
     assert "overflow" not in str(e.value) and "constant or zero recording" in str(e.value)
+
+
+@pytest.mark.parametrize("run_dir", [None, b"outputs/runs/x", 3, ["outputs"]])
+def test_a_run_dir_that_is_no_path_is_one_line_naming_it(run_dir):
+    from hybrid_sysid import load_estimator
+
+    with pytest.raises(InputError, match="run_dir") as caught:
+        load_estimator(run_dir)
+    assert "\n" not in str(caught.value) and "a str or a pathlib.Path" in str(caught.value)

@@ -26,6 +26,9 @@ def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estima
     raises InputError (a ValueError) in one line. A baseline run (``baseline=ls_*``: no network) estimates with
     its least-squares fit (``checkpoint`` is then ignored). The run's metrics.json gives its own test error (the
     flag run_error)."""
+    if not isinstance(run_dir, (str, Path)):  # None, bytes or a number reached RunDir as a TypeError
+        shown = Shown(repr(run_dir)[:80])
+        raise InputError("run_dir", shown, "the path of a run directory, as a str or a pathlib.Path")
     run = RunDir(run_dir)
     cfg = _as_input(run, run.saved_config)
     is_baseline = _as_input(run, lambda: OmegaConf.select(cfg, "baseline", default=None)) is not None
