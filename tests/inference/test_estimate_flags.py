@@ -113,6 +113,8 @@ def test_a_run_with_a_large_or_unknown_test_error_flags_every_estimate(est):
         (record(k1=(0.40, 0.38)), 8, True, "clean test error is 40.0% mean relative deviation (K = 1"),
         (record(k1=(0.02, 0.03)), 8, False, None),
         (None, 8, True, "test error is unknown"),
+        (record(k1=(-0.5, -0.5)), 8, True, "test error is unknown"),  # impossible: no measurement
+        (record(k1=(float("inf"), 0.01)), 8, True, "test error is unknown"),
         # the record's K nearest below the prediction's: K = 8 rows for windows=8, K = 1 for windows=4
         (record(k1=(0.20, 0.20), k8=(0.05, 0.04)), 8, False, None),
         (record(k1=(0.20, 0.20), k8=(0.05, 0.04)), 4, True, "is 20.0% mean relative deviation (K = 1"),

@@ -168,7 +168,8 @@ class ChannelReference:
 def run_error(record: dict | None, windows: int) -> tuple[float | None, int | None, dict]:
     """The run's clean test error from its record: (the larger mean relative deviation of p1 and p2, the K of
     those rows, {parameter: value}); K is the largest the record holds up to ``windows``, else its smallest.
-    (None, None, {}) when the record has no clean test rows."""
+    (None, None, {}) when the record has no clean test rows, or one of them is no possible deviation (NaN, inf,
+    below 0)."""
     rows = []
     for r in (record or {}).get("results", []) if isinstance(record, dict) else []:
         try:
@@ -176,8 +177,8 @@ def run_error(record: dict | None, windows: int) -> tuple[float | None, int | No
                 rows.append((int(r["windows"]), r["parameter"], float(r["mean_rel_dev"])))
         except (KeyError, TypeError, ValueError):
             continue
-    rows = [r for r in rows if math.isfinite(r[2])]
-    if not rows:
+    # a deviation that is not finite or below 0 measured nothing: the record cannot vouch for the run
+    if not rows or not all(math.isfinite(v) and v >= 0 for _, _, v in rows):
         return None, None, {}
     ks = sorted({k for k, _, _ in rows})
     k = max([x for x in ks if x <= windows], default=ks[0])
