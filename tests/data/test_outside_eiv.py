@@ -1,7 +1,7 @@
 """The errors-in-variables fit over the samples of a recording outside each window (objective=cross_segment's
 target "eiv", data/outside.py): physics.eiv's fit where the outside is one segment, exact on clean recordings
 wherever the window sits, blind to the window's samples, closer to the truth than the least-squares outside fit
-under noise; the objective's ``target`` reaches the data module with its taps."""
+under noise; the objective's ``target`` reaches the data module's fit."""
 
 import pickle
 
@@ -12,7 +12,8 @@ import torch
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
-from hybrid_sysid.data.outside import OutsideFit, fit_joined, outside_taps
+from hybrid_sysid.data.outside import OutsideFit
+from hybrid_sysid.data.outside_joined import fit_joined
 from hybrid_sysid.model.cross_segment import CrossSegmentObjective
 from hybrid_sysid.physics import QuarterCar, road_profiles, simulate
 from hybrid_sysid.physics.eiv import fit_eiv
@@ -83,9 +84,7 @@ def test_the_target_reads_no_sample_of_the_window(dataset):
     normals = np.random.default_rng(1).standard_normal((4, 2, N))
 
     def target(s, b):
-        out = OutsideFit(s, b, DT, SPEC.measurement, W, outside_taps(FIR, "eiv")).fit(
-            np.arange(4), starts, 0.02, normals
-        )
+        out = OutsideFit(s, b, DT, SPEC.measurement, W, FIR, "eiv").fit(np.arange(4), starts, 0.02, normals)
         return out["p_out"].numpy(), out["se_out"].numpy()
 
     p, se = target(seat, body)
@@ -121,7 +120,7 @@ def test_under_noise_it_is_closer_to_the_truth_than_the_least_squares_outside_fi
     )
     error, loss = {}, {}
     for target in ("ls", "eiv"):
-        fit = OutsideFit(dataset.seat_acc, dataset.body_acc, DT, SPEC.measurement, W, outside_taps(FIR, target))
+        fit = OutsideFit(dataset.seat_acc, dataset.body_acc, DT, SPEC.measurement, W, FIR, target)
         out = fit.fit(rows, starts, 0.03, normals)
         error[target] = np.abs(out["p_out"].numpy() / truth - 1).mean(axis=0)
         loss[target] = objective(torch.from_numpy(truth), out).item()
@@ -136,12 +135,13 @@ def test_the_objective_hands_its_target_to_the_data_module():
     band = {"low_hz": 4.0, "high_hz": 20.0, "taps": 101}
     batches = {}
     for target in ("ls", "eiv", None):
-        fir = bandpass_taps(4.0, 20.0, 101, DT)
+        fir, chosen = bandpass_taps(4.0, 20.0, 101, DT), None
         if target is not None:
-            fir = CrossSegmentObjective(p_scale=[8.0, 1200.0], filter=band, dt=DT, target=target).outside_fir
-        dm = QuarterCarDataModule(spec, window=200, seed=3, outside_fir=fir)
+            objective = CrossSegmentObjective(p_scale=[8.0, 1200.0], filter=band, dt=DT, target=target)
+            fir, chosen = objective.outside_fir, objective.outside_target
+        dm = QuarterCarDataModule(spec, window=200, seed=3, outside_fir=fir, outside_target=chosen)
         batches[target] = {k: dm.eval_batch("val", std) for k, std in (("clean", 0.0), ("noisy", 0.02))}
-    # "ls" is today's fit, the plain taps' too, to the bit
+    # "ls" is the fit of taps without a target (a config saved before the key existed), to the bit
     for k in ("clean", "noisy"):
         assert torch.equal(batches["ls"][k]["p_out"], batches[None][k]["p_out"])
         assert torch.equal(batches["ls"][k]["se_out"], batches[None][k]["se_out"])
@@ -150,10 +150,22 @@ def test_the_objective_hands_its_target_to_the_data_module():
     assert not torch.equal(batches["eiv"]["noisy"]["p_out"], batches["ls"]["noisy"]["p_out"])
 
 
-def test_the_tag_survives_a_copy_and_a_pickle_and_a_bad_target_is_named():
-    taps = outside_taps(np.ones(5), "eiv")
-    assert pickle.loads(pickle.dumps(taps)).target == "eiv" and taps.copy().target == "eiv"
-    assert len(taps) == 5 and np.asarray(taps, dtype=np.float64).sum() == 5
+def test_the_target_reaches_the_outside_fit_of_a_pickled_data_module_and_a_bad_target_is_named(make_cfg):
+    from hybrid_sysid.training.build import build_datamodule, build_objective
+
+    for overrides, want in (((), "eiv"), (("objective.target=ls",), "ls")):
+        cfg = make_cfg(
+            "data=tiny", "objective=cross_segment", "data.window=100", "objective.filter.taps=61", *overrides
+        )
+        objective = build_objective(cfg)
+        assert objective.outside_target == want
+        dm = pickle.loads(pickle.dumps(build_datamodule(cfg, objective)))  # as a data module built in another process
+        dm.setup("fit")
+        assert dm.data.outside.target == want
+    plain = np.zeros((1, 800))
+    assert OutsideFit(plain, plain, DT, SPEC.measurement, 200, np.ones(5)).target == "ls"
+    with pytest.raises(ConfigError, match=r"^target = 'tls' is not allowed: one of eiv, ls"):
+        OutsideFit(plain, plain, DT, SPEC.measurement, 200, np.ones(5), "tls")
     with pytest.raises(ConfigError, match=r"^target = 'tls' is not allowed: one of eiv, ls"):
         CrossSegmentObjective(
             p_scale=[8.0, 1200.0], filter={"low_hz": 4.0, "high_hz": 20.0, "taps": 101}, dt=DT, target="tls"
@@ -163,5 +175,5 @@ def test_the_tag_survives_a_copy_and_a_pickle_and_a_bad_target_is_named():
 def test_the_config_chooses_the_target(make_cfg):
     from hybrid_sysid.training.build import build_objective
 
-    assert build_objective(make_cfg("objective=cross_segment")).outside_fir.target == "eiv"
-    assert build_objective(make_cfg("objective=cross_segment", "objective.target=ls")).outside_fir.target == "ls"
+    assert build_objective(make_cfg("objective=cross_segment")).outside_target == "eiv"
+    assert build_objective(make_cfg("objective=cross_segment", "objective.target=ls")).outside_target == "ls"

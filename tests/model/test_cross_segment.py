@@ -44,14 +44,14 @@ def test_the_loss_is_the_weighted_l1_with_undefined_rows_left_out():
 def test_on_clean_recordings_it_is_the_labelled_objective(target):
     spec = DatasetSpec(n_roads=6, n_masses=4, n_steps=800, seed=5, seat_spread=0.3)
     obj = objective(target=target)
-    dm = QuarterCarDataModule(spec, window=200, seed=0, outside_fir=obj.outside_fir)
+    dm = QuarterCarDataModule(spec, window=200, seed=0, outside_fir=obj.outside_fir, outside_target=obj.outside_target)
     batch = dm.eval_batch("train", 0.0)
     pred = batch["params"] * torch.tensor([1.1, 0.95])
     # every clean outside fit is exact to rounding, far below the floor: equal weights, the labels' L1
     expected = LabelledObjective(SCALE)(pred, batch).item()
     assert obj(pred, batch).item() == pytest.approx(expected, rel=1e-4)
     assert obj.uses_labels is False and obj.monitor == "val/loss" and obj.fir is None
-    assert len(obj.outside_fir) == 101 and obj.outside_fir.target == target
+    assert len(obj.outside_fir) == 101 and obj.outside_target == target
 
 
 def test_bad_settings_are_named():

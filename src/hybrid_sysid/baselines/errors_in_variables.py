@@ -27,18 +27,13 @@ from hybrid_sysid.core.checks import bad, check_choice, check_number
 from hybrid_sysid.core.options import FIXES
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
-from hybrid_sysid.physics.eiv import P_HI, P_LO, fit_eiv, log_p_prior
+from hybrid_sysid.physics.eiv import P_HI, P_LO, eiv_model, fit_eiv, log_p_prior
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 from hybrid_sysid.physics.seat_fit import fit_windows
 
 PRIOR_KEYS = ("m3_min", "m3_max", "c3", "k3", "seat_spread")
 EDGE = 0.05  # in log p: a fit this close to its box's edge ran into it
 PRIOR_FLOOR = 1e-4  # added in quadrature to the prior's standard deviations of log p
-
-
-def eiv_model(measurement: str) -> str:
-    """The transfer function that describes a recording of this measurement (physics.eiv's ``model``)."""
-    return "continuous" if measurement == "continuous" else "discrete"
 
 
 def _trusted(fit, start: np.ndarray) -> np.ndarray:

@@ -31,7 +31,7 @@ class QuarterCarDataModule(L.LightningDataModule):
     ``fir``: the objective's band-pass taps (``objective.fir``), so the batches carry the filtered signals the
     objective reads; None for an objective without a filter. ``outside_fir``: the objective's band-pass of the fit
     over each window's outside samples (hybrid_sysid.data.outside), whose "p_out" and "se_out" the training and
-    evaluation batches then carry.
+    evaluation batches then carry; ``outside_target`` that fit, "eiv" or "ls" (the objective's; None: "ls").
     """
 
     def __init__(
@@ -49,6 +49,7 @@ class QuarterCarDataModule(L.LightningDataModule):
         fir: np.ndarray | None = None,
         train_std_max: float | None = None,
         outside_fir: np.ndarray | None = None,
+        outside_target: str | None = None,
     ):
         super().__init__()
         spec.validate()
@@ -62,6 +63,7 @@ class QuarterCarDataModule(L.LightningDataModule):
         self.batch_size, self.eval_batch_size = batch_size, eval_batch_size
         self.train_std, self.seed = float(train_std), seed
         self.integration, self.fir, self.outside_fir = integration, fir, outside_fir
+        self.outside_target = outside_target
         self.train_std_max = None if train_std_max is None else float(train_std_max)
         self.dataset: SimulatedDataset | None = None
         self.data: WindowCutter | None = None
@@ -74,7 +76,9 @@ class QuarterCarDataModule(L.LightningDataModule):
     def setup(self, stage: str | None = None) -> None:
         if self.data is None:
             self.dataset = self._get_dataset()
-            self.data = WindowCutter(self.dataset, self.window, self.integration, self.fir, self.outside_fir)
+            self.data = WindowCutter(
+                self.dataset, self.window, self.integration, self.fir, self.outside_fir, self.outside_target
+            )
             rows, std, std_max = self.split.train, self.train_std, self.train_std_max
             self.train_windows = RandomWindows(self.data, rows, self.batch_size, self.seed, std, noise_std_max=std_max)
 

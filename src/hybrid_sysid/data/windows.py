@@ -100,7 +100,8 @@ class WindowCutter:
     integrations give the same filtered signals (the filter removes the offsets).
 
     ``outside_fir`` (the objective's, or None): ``outside`` is then the fit over each window's outside samples
-    (hybrid_sysid.data.outside), whose "p_out" and "se_out" the training and evaluation batches carry.
+    (hybrid_sysid.data.outside), whose "p_out" and "se_out" the training and evaluation batches carry;
+    ``outside_target`` the fit (the objective's, one of data.outside.TARGETS; None: "ls").
     """
 
     def __init__(
@@ -110,6 +111,7 @@ class WindowCutter:
         integration: str = "t0",
         fir: np.ndarray | None = None,
         outside_fir: np.ndarray | None = None,
+        outside_target: str | None = None,
     ):
         self.dt = ds.spec.dt
         self.measurement = ds.spec.measurement
@@ -121,7 +123,9 @@ class WindowCutter:
         self.n_steps = ds.seat_acc.shape[1]
         self.outside = None
         if outside_fir is not None:
-            self.outside = OutsideFit(ds.seat_acc, ds.body_acc, self.dt, self.measurement, window, outside_fir)
+            self.outside = OutsideFit(
+                ds.seat_acc, ds.body_acc, self.dt, self.measurement, window, outside_fir, outside_target
+            )
         self.fir = None
         if fir is not None:
             fir = np.asarray(fir, dtype=np.float64)

@@ -5,7 +5,7 @@ network reads: the target carries that window's noise, and the network learns it
 seat over the recording's samples outside the window (``p_out``), whose sensor noise is independent of the
 window's: the errors-in-variables maximum likelihood, or the band-passed least squares (``target``). The data
 module computes it (hybrid_sysid.data.outside, ``WindowCutter.outside``) when an objective asks through
-``outside_fir``.
+``outside_fir`` and ``outside_target``.
 """
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.core.checks import ConfigError, check_number, check_pair
-from hybrid_sysid.data.outside import outside_taps
+from hybrid_sysid.core.checks import ConfigError, check_choice, check_number, check_pair
+from hybrid_sysid.data.outside import TARGETS
 from hybrid_sysid.model.objectives import LABEL_FREE
 from hybrid_sysid.physics.filters import filter_taps
 
@@ -42,7 +42,8 @@ class CrossSegmentObjective(nn.Module):
     uses_labels = False
     monitor = LABEL_FREE
     fir = None  # the network's window needs no filtered signals: only the outside fit is band-passed
-    outside_fir: np.ndarray | None = None  # set below: the band-pass of the outside fit, tagged with ``target``
+    outside_fir: np.ndarray | None = None  # set below: the band-pass of the outside fit
+    outside_target: str | None = None  # set below: ``target``, the fit the data module computes
 
     def __init__(
         self, p_scale: Sequence[float], filter: dict, dt: float | None = None, floor: float = 0.01, target: str = "ls"
@@ -53,8 +54,9 @@ class CrossSegmentObjective(nn.Module):
         if dt is None:
             raise ConfigError("dt", missing=True, allowed="the band-pass needs the data's step (${data.dt})")
         self.filter = dict(filter)
-        self.target = target
-        self.outside_fir = outside_taps(filter_taps(self.filter, dt), target)
+        check_choice("target", target, TARGETS)
+        self.target = self.outside_target = target
+        self.outside_fir = filter_taps(self.filter, dt)
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         if "p_out" not in batch:

@@ -28,8 +28,8 @@ def build_objective(cfg: DictConfig):
 
 def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
     """The data module; when the objective reads band-passed signals (its ``fir``) or the fit over each window's
-    outside samples (its ``outside_fir``), the batches carry them. ``objective``: the run's, else built from the
-    config (none for a baseline)."""
+    outside samples (its ``outside_fir`` and ``outside_target``), the batches carry them. ``objective``: the run's,
+    else built from the config (none for a baseline)."""
     if objective is None and cfg.get("baseline") is None:
         objective = build_objective(cfg)
     d = cfg.data
@@ -46,6 +46,8 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
         fir=None if objective is None else objective.fir,
         train_std_max=cfg.noise.get("train_std_max"),
         outside_fir=None if objective is None else objective.outside_fir,
+        # an objective of a plugin need not declare a target: its outside fit, if any, is least squares
+        outside_target=getattr(objective, "outside_target", None),
     )
 
 
@@ -197,6 +199,7 @@ def load_network(net: torch.nn.Module, cfg: DictConfig, run_dir: Path, key: str)
     with). A network of another architecture (class or any argument besides the prior of p) is a ConfigError
     naming ``key``."""
     run = RunDir(run_dir)
+    run.ended_record(key)  # a run still training has not yet the weights it will leave; a damaged record is refused
     source = run.saved_config(key)
     saved_net = OmegaConf.select(source, "model.net")
     prior = arguments(cfg.model.net, "model.net")[0].prior_arguments  # derived from the data, not the architecture

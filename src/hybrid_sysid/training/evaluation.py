@@ -10,7 +10,7 @@ from hybrid_sysid.core import stop
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.model.base import SplitPredictor
 from hybrid_sysid.model.metrics import PARAMETERS, bound_fields, summarise
-from hybrid_sysid.physics.eiv import crb_relative_std
+from hybrid_sysid.physics.eiv import crb_relative_std, eiv_model
 
 
 def score(
@@ -55,12 +55,10 @@ def score(
 def recording_bounds(dm: QuarterCarDataModule, split: str, windows: int) -> tuple[np.ndarray, np.ndarray]:
     """Per recording of ``split``, the Cramér-Rao relative standard deviation of (p1, p2) per unit noise std (n, 2),
     with noise on both channels (the simulator's ratio, 1) and on the seat alone: computed on the split's clean
-    evaluation windows at the true p (physics.eiv), the model the recording's (baselines.errors_in_variables).
+    evaluation windows at the true p (physics.eiv), the model the recording's (physics.eiv.eiv_model).
 
     With K windows per recording, their information adds as if their noise were independent: an estimator that
     averages K overlapping windows of one noisy recording cannot do better, so the bound stays a bound."""
-    from hybrid_sysid.baselines.errors_in_variables import eiv_model
-
     batch = dm.eval_batch(split, 0.0, windows=windows)
     seat, body = (batch["signals"][:, i].numpy().astype(np.float64) for i in (0, 1))
     p = batch["params"].numpy().astype(np.float64)
