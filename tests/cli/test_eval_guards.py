@@ -129,9 +129,11 @@ def test_a_run_whose_saved_config_or_record_is_damaged_is_one_line_naming_the_fi
     assert snapshot(tmp_path) == before
 
 
-def test_a_run_still_training_is_not_evaluated(tiny_run, tmp_path, cli_in_process):
+@pytest.mark.parametrize("command", ["eval", "init_from"])
+def test_a_run_still_training_is_not_evaluated_nor_started_from(tiny_run, tmp_path, cli_in_process, command):
     """Its writer lock held (as a run in training holds it, from before Hydra writes there) and no record yet:
-    one line saying so, exit 2, nothing written; once the lock is free the same command evaluates it."""
+    one line saying so, exit 2, nothing written: its checkpoints are not yet what it will leave."""
+    from hybrid_sysid.cli.train import main as train
     from hybrid_sysid.runs.locks import hold_for_writing
 
     source = copy_of(tiny_run, tmp_path / "source")
@@ -140,10 +142,15 @@ def test_a_run_still_training_is_not_evaluated(tiny_run, tmp_path, cli_in_proces
     lock = hold_for_writing(source, "hydra.run.dir")  # another open file: to flock, another writer
     before = snapshot(tmp_path)
     try:
-        proc = eval_cli(cli_in_process, tmp_path, f"run={source}", f"hydra.run.dir={out_dir}")
+        if command == "eval":
+            proc = eval_cli(cli_in_process, tmp_path, f"run={source}", f"hydra.run.dir={out_dir}")
+        else:
+            args = ["data=tiny", "trainer=debug", "trainer.max_steps=5", f"init_from={source}"]
+            code, out, err = cli_in_process(train, *args, f"hydra.run.dir={out_dir}", cwd=tmp_path)
+            proc = subprocess.CompletedProcess(args, code, out, err)
     finally:
         lock.release()
-    one_line(proc, f"run = {source}", "another process is still writing it")
+    one_line(proc, f"{'run' if command == 'eval' else 'init_from'} = {source}", "another process is still writing it")
     assert snapshot(tmp_path) == before
 
 

@@ -47,7 +47,7 @@ class AnchoredCNN(FastCNN):
         itself. Least squares takes the body channel as exact, so under noise its p is biased towards zero, and
         its se, from a band-passed and so coloured residual, ranks fits rather than measuring their error. The
         likelihood fit reaches the Cramer-Rao bound and its se follows its actual spread at a good signal-to-noise
-        ratio (physics/eiv.py), which is what the gate's weight assumes. The constructor's default is "ls": a
+        ratio (physics/eiv/), which is what the gate's weight assumes. The constructor's default is "ls": a
         saved config written before the argument existed was trained with it. conf/model/anchored.yaml sets
         "eiv".
     fix: the classical fix of the fault the config simulates (``${fault_fix:}``, core.options.FIXES), handed to
