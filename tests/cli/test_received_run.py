@@ -134,3 +134,24 @@ def test_a_report_counts_a_metrics_json_nested_deep_as_unreadable(tiny_run, tmp_
     (run / "metrics.json").write_text("[" * 100_000 + "]" * 100_000)
     assert main([str(run), f"out={tmp_path / 'out'}"]) == 1
     assert "1 runs, 1 failed or unreadable" in capsys.readouterr().err
+
+
+def test_a_run_and_its_report_in_a_non_ascii_directory_under_an_ascii_locale(tmp_path, tiny_cache):
+    """A run in lauf_ü under LC_ALL=C without UTF-8 mode (once a 40-line logging traceback): exit 0, no logging
+    error, the log file keeps the path's bytes as they were (UTF-8), and the report of it writes its summary."""
+    where = tmp_path / "lauf_ü"
+    where.mkdir()
+    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONIOENCODING", "HYDRA_FULL_ERROR")}
+    env.update(LC_ALL="C", LANG="C", PYTHONUTF8="0", HYBRID_SYSID_CACHE=str(tiny_cache))
+    # the run's directory under the working directory (outputs/runs/<time>), so no argument holds the name
+    commands = [
+        [sys.executable, "-m", "hybrid_sysid", "baseline=ls_window", "data=tiny"],
+        [sys.executable, "-m", "hybrid_sysid.report", "outputs/runs"],
+    ]
+    for command in commands:
+        proc = subprocess.run(command, cwd=where, env=env, capture_output=True, timeout=300)
+        assert proc.returncode == 0, proc.stderr[-2000:]
+        assert b"Logging error" not in proc.stderr and b"Traceback" not in proc.stderr, proc.stderr[-2000:]
+    (run,) = (where / "outputs" / "runs").glob("*/metrics.json")
+    assert "lauf_ü".encode() in (run.parent / "train.log").read_bytes()
+    assert (where / "outputs" / "runs" / "summary.md").is_file()

@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import logging
 import os
+import sys
 import warnings
 from contextlib import contextmanager
 
@@ -23,6 +24,14 @@ LIGHTNING = ("lightning", "lightning.pytorch", "lightning.fabric")
 SWEEP_INFO = (("hybrid_sysid.data.cache", "simulating"), ("hybrid_sysid", "already completed"))
 _job = {"running": False}
 SRUN_ADVERT = "The `srun` command is available on your system but is not used"  # lightning.fabric's SLURMEnvironment
+
+
+def tolerant_streams() -> None:
+    """stdout and stderr write what their encoding cannot as backslash escapes: under an ASCII locale (LC_ALL=C) a
+    path outside ASCII, or the table's Cramér-Rao row, raised UnicodeEncodeError in the middle of a run's logging."""
+    for stream in (sys.stdout, sys.stderr):
+        if hasattr(stream, "reconfigure"):
+            stream.reconfigure(errors="backslashreplace")
 
 
 class ConsoleFilter(logging.Filter):

@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
+from hybrid_sysid.cli.console import tolerant_streams
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.inference.inputs import EstimateWarning, InputError
@@ -185,9 +186,7 @@ example:
 def main(argv: list[str] | None = None) -> None:
     """Console script; exit status 2 with one line on stderr for bad input, 130 for Ctrl-C (128 + SIGINT)."""
     argv = sys.argv[1:] if argv is None else list(argv)
-    for stream in (sys.stdout, sys.stderr):  # an ASCII locale cannot encode a recording's or a path's name
-        if hasattr(stream, "reconfigure"):
-            stream.reconfigure(errors="backslashreplace")
+    tolerant_streams()  # an ASCII locale cannot encode a recording's or a path's name
     if any(a in ("-h", "--help") for a in argv):
         print(HELP.format(usage=USAGE), end="")
         return

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
+from hybrid_sysid.cli.console import tolerant_streams
 from hybrid_sysid.core.checks import Shown
 from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.data.splits import SPLITS
@@ -106,6 +107,7 @@ def _error(message: str) -> int:
 def main(argv=None) -> int:
     """The command. SIGTERM or SIGINT ends it with one line and 128 + the signal's number; a file being written
     then is left as it was, its temporary file removed (the default SIGTERM left it in figures/)."""
+    tolerant_streams()
     caught = [s for s in (signal.SIGTERM, signal.SIGINT) if signal.getsignal(s) is not signal.SIG_IGN]
     received: list[int] = []
 
