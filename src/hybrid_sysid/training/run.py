@@ -10,7 +10,6 @@ entry points are hybrid_sysid.cli.
 
 from __future__ import annotations
 
-import functools
 import logging
 import time
 from dataclasses import dataclass, field
@@ -43,6 +42,7 @@ from hybrid_sysid.training.build import (
 )
 from hybrid_sysid.training.callbacks import CURVE_COLUMNS, LearningCurves, RunCheckpoint, TrainingClock
 from hybrid_sysid.training.evaluation import by_road_class, class_table, console_table, score
+from hybrid_sysid.training.threads import keeps_thread_count
 from hybrid_sysid.training.tracking import Naming, build_loggers, finish, hyperparameters
 
 log = logging.getLogger("hybrid_sysid")
@@ -131,23 +131,6 @@ class Job:
         finish(self.loggers, results, outcome.steps)
         log.info("run %s: %s\n%s\n%s", self.run.path, outcome.summary(), console_table(results), class_table(classes))
         return record
-
-
-def keeps_thread_count(fn):
-    """Run ``fn`` and put torch's thread count back as it was: a run sets its own (``trainer.threads``), and one run
-    called after another in the same process (a test, a notebook, the basic launcher's jobs) must start from the
-    count the process had, or its numbers would depend on the runs before it (docs/reliability/reproducibility.md)."""
-
-    @functools.wraps(fn)
-    def wrapper(*args, **kwargs):
-        threads = torch.get_num_threads()
-        try:
-            return fn(*args, **kwargs)
-        finally:
-            if torch.get_num_threads() != threads:
-                torch.set_num_threads(threads)
-
-    return wrapper
 
 
 @keeps_thread_count
