@@ -12,8 +12,10 @@ import os
 # and LOCAL_RANK; srun SLURM_PROCID; Lightning's environment NODE_RANK and LOCAL_RANK, its global rank being
 # NODE_RANK x devices + LOCAL_RANK)
 RANK_VARIABLES = ("RANK", "SLURM_PROCID", "NODE_RANK", "GROUP_RANK", "LOCAL_RANK")
-# what a process started as one node of several holds (Lightning's environment, started by hand on each node)
-NODE_VARIABLES = ("MASTER_ADDR", "NODE_RANK", "GROUP_RANK")
+# what a process started as one node of several holds: Lightning's environment started by hand on each node
+# (MASTER_ADDR, NODE_RANK), torchrun (MASTER_ADDR, GROUP_RANK, TORCHELASTIC_RUN_ID). WORLD_SIZE is not among them:
+# alone it says how many processes to wait for, not that anything starts them on the other nodes
+NODE_VARIABLES = ("MASTER_ADDR", "NODE_RANK", "GROUP_RANK", "TORCHELASTIC_RUN_ID")
 
 
 def is_global_zero() -> bool:
@@ -27,10 +29,22 @@ def launched_world() -> tuple[int, str] | None:
     job named bash or interactive does not use); None when nothing says (one process, or Lightning starts them)."""
     if os.environ.get("WORLD_SIZE", "").strip().isdigit():
         return int(os.environ["WORLD_SIZE"]), "WORLD_SIZE"
+    tasks = slurm_tasks()
+    return None if tasks is None else (tasks, "SLURM_NTASKS")
+
+
+def slurm_tasks() -> int | None:
+    """The tasks srun started in a SLURM batch job (Lightning's SLURM environment), None outside one."""
     tasks = os.environ.get("SLURM_NTASKS", "").strip()
     if tasks.isdigit() and os.environ.get("SLURM_JOB_NAME") not in ("bash", "interactive"):
-        return int(tasks), "SLURM_NTASKS"
+        return int(tasks)
     return None
+
+
+def starts_other_nodes() -> bool:
+    """Whether a launcher started this process as one node of several: srun in a batch job, torchrun, or a user
+    who set MASTER_ADDR or NODE_RANK on each node. A WORLD_SIZE alone does not say so."""
+    return slurm_tasks() is not None or any(os.environ.get(v, "").strip() for v in NODE_VARIABLES)
 
 
 def check_world(num_nodes, devices) -> None:
@@ -44,13 +58,15 @@ def check_world(num_nodes, devices) -> None:
     if node.isdigit() and int(node) >= nodes:
         bad("trainer.num_nodes", nodes, f"more than this node's rank, NODE_RANK = {node} (one rank per node, from 0)")
     world = launched_world()
-    if world is None and nodes > 1 and not any(os.environ.get(v, "").strip() for v in NODE_VARIABLES):
-        # nothing starts the other nodes' processes: this one would wait for them in the rendezvous, deaf to signals
+    if nodes > 1 and not starts_other_nodes():
+        # nothing starts the other nodes' processes: this one would wait for them in the rendezvous, deaf to signals.
+        # A WORLD_SIZE that matches (4 for 2 nodes x 2 devices) changes nothing: no process of node 1 ever comes
+        given = "" if world is None else f", {world[1]} = {world[0]} alone starts none"
         bad(
             "trainer.num_nodes",
             nodes,
             "1 unless a launcher starts a process on every node (launcher=slurm, srun, torchrun; or by hand, with "
-            "MASTER_ADDR and NODE_RANK set on each node)",
+            f"MASTER_ADDR and NODE_RANK set on each node){given}",
         )
     if world is None or isinstance(devices, bool) or not isinstance(devices, int):
         return
