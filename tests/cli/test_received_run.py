@@ -70,6 +70,39 @@ def test_a_billion_laughs_in_a_saved_config_is_one_line_at_once(tiny_run, tmp_pa
     assert snapshot(tmp_path) == before
 
 
+@pytest.mark.parametrize("command", ["predict", "eval", "report"])
+def test_a_saved_config_whose_aliases_expand_to_megabytes_is_refused_at_once(
+    tiny_run, tmp_path, recording, capfd, cli_in_process, command
+):
+    """One long scalar aliased (the attack: 8 MiB, 90,000 times, once hours of CPU deaf to SIGTERM; here 700 kB
+    twice, so the test ends without the bound too). predict and eval refuse it in one line, exit 2, nothing
+    written; the report tabulates the run from its record alone, as with any unreadable config."""
+    run = tmp_path / "received"
+    shutil.copytree(tiny_run, run)
+    with open(run / ".hydra" / "config.yaml", "a") as f:
+        f.write("big: &b " + "a" * 700_000 + "\nmany: [*b, *b]\n")
+    before = snapshot(tmp_path, recording.parent)
+    if command == "report":
+        from hybrid_sysid.cli.report import main as report
+
+        assert report([str(run), f"out={tmp_path / 'out'}"]) == 0
+        out, err = capfd.readouterr()
+        assert "Traceback" not in err and (tmp_path / "out" / "summary.md").is_file()
+        return
+    if command == "predict":
+        from hybrid_sysid.cli.predict import main as predict_main
+
+        code, out, err = cli_in_process(predict_main, f"run={run}", f"input={recording}", cwd=tmp_path)
+    else:
+        from hybrid_sysid.cli.evaluate import main as evaluate
+
+        code, out, err = cli_in_process(evaluate, f"run={run}", f"hydra.run.dir={tmp_path / 'ev'}", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert f"run = {run} is not allowed: its .hydra/config.yaml is damaged" in err
+    assert "bytes of text with its aliases expanded" in err and "aaaa" not in err
+    assert snapshot(tmp_path, recording.parent) == before
+
+
 @pytest.mark.parametrize("kind", ["nested", "fifo"])
 def test_a_damaged_metrics_json_leaves_the_runs_error_unknown(tiny_run, tmp_path, recording, capsys, kind):
     """metrics.json nested 100,000 deep (once a RecursionError named as the config's) or a FIFO (once a

@@ -3,11 +3,12 @@ nodes with every alias expanded; each refusal is an UnreadableFile (a ValueError
 
 import json
 import os
+import time
 
 import pytest
 import yaml
 
-from hybrid_sysid.core.files import MAX_YAML_NODES, UnreadableFile, read_json, read_text, read_yaml
+from hybrid_sysid.core.files import MAX_YAML_BYTES, MAX_YAML_NODES, UnreadableFile, read_json, read_text, read_yaml
 
 from helpers.hostile import laughs
 
@@ -53,6 +54,36 @@ def test_a_billion_laughs_is_refused_before_any_expansion(tmp_path):
     path = tmp_path / "config.yaml"
     path.write_text(laughs(9))  # 9 ** 9 = 387 million leaves: expanded, gigabytes
     with pytest.raises(UnreadableFile, match=f"more than {MAX_YAML_NODES} nodes with its aliases expanded"):
+        read_yaml(path)
+
+
+def test_one_long_scalar_aliased_many_times_is_refused_by_its_expanded_bytes(tmp_path):
+    """An 8 MiB scalar aliased 90,000 times: 90,001 nodes, within the node count, but 700 GiB of text once expanded
+    (building a config from it took hours). Refused in seconds, before any value is built."""
+    path = tmp_path / "config.yaml"
+    path.write_text("big: &b " + "a" * 8 * 2**20 + "\nmany: [" + ", ".join(["*b"] * 90_000) + "]\n")
+    started = time.monotonic()
+    with pytest.raises(UnreadableFile, match=f"more than {MAX_YAML_BYTES} bytes of text with its aliases expanded"):
+        read_yaml(path)
+    assert time.monotonic() - started < 5
+
+
+def test_text_up_to_the_expanded_bytes_is_read(tmp_path):
+    """Keys and values count, in UTF-8 bytes; a file exactly at the bound reads, one more is refused."""
+    path = tmp_path / "config.yaml"
+    value = "ü" + "a" * ((MAX_YAML_BYTES - 2) // 2 - 2)  # twice (anchored, aliased) with the keys k and j: the bound
+    path.write_text(f"k: &v {value}\nj: *v\n")
+    assert read_yaml(path) == {"k": value, "j": value}
+    path.write_text(f"k: &v {value}a\nj: *v\n")
+    with pytest.raises(UnreadableFile, match="bytes of text"):
+        read_yaml(path)
+
+
+@pytest.mark.parametrize("text", ["[" * 100_000, "- " * 100_000 + "x", "".join(" " * i + "a:\n" for i in range(2000))])
+def test_yaml_nested_deeper_than_the_limit_is_refused(tmp_path, text):
+    path = tmp_path / "config.yaml"
+    path.write_text(text)
+    with pytest.raises(UnreadableFile, match="nested deeper than 64"):
         read_yaml(path)
 
 

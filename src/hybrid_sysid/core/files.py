@@ -51,6 +51,10 @@ def write_yaml_atomic(path: Path, payload) -> None:
 MAX_BYTES = 16 * 2**20
 MAX_DEPTH = 64  # nesting of JSON arrays and objects, YAML sequences and mappings
 MAX_YAML_NODES = 100_000  # a YAML file's nodes with each alias counted as the whole node it repeats
+# a YAML file's scalar text (keys and values, in UTF-8 bytes) with each alias expanded: a run's saved config is about
+# 2 kB and a sweep's multirun.yaml about 8 kB, so 1 MiB is over 100 times either. Building a config walks every
+# string each alias repeats, a few microseconds a character: one 8 MiB scalar aliased 90,000 times took hours
+MAX_YAML_BYTES = 2**20
 
 
 class UnreadableFile(ValueError):
@@ -85,16 +89,21 @@ def read_json(path: str | os.PathLike, limit: int = MAX_BYTES, depth: int = MAX_
 
 def read_yaml_text(path: str | os.PathLike, limit: int = MAX_BYTES) -> str:
     """A received YAML file's text (read_text's limits) once its node graph, composed without building any value,
-    is at most MAX_DEPTH deep and MAX_YAML_NODES large with every alias expanded (a "billion laughs" of chained
-    aliases is a few lines that expand beyond any memory)."""
+    is at most MAX_DEPTH deep, MAX_YAML_NODES large and MAX_YAML_BYTES of text with every alias expanded (a
+    "billion laughs" of chained aliases is a few lines that expand beyond any memory)."""
     import yaml
 
     text = read_text(path, limit)
+    # libyaml's composer, where PyYAML has it, builds the same node graph some 30 times faster: an 8.9 MB file is
+    # refused in a fraction of a second, not seconds (a report reads a run's config several times)
+    loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     try:
-        root = yaml.compose(text, Loader=yaml.SafeLoader)
+        root = yaml.compose(text, Loader=loader)
     except RecursionError:
         raise UnreadableFile(f"nested deeper than {MAX_DEPTH}") from None
     except yaml.YAMLError as exc:
+        if "maximum nesting depth" in str(exc):  # libyaml's own limit (1000), met before ours
+            raise UnreadableFile(f"nested deeper than {MAX_DEPTH}") from None
         raise UnreadableFile(f"{type(exc).__name__}: {' '.join(str(exc).split())}") from None
     if root is not None:
         _check_yaml_size(root)
@@ -126,8 +135,8 @@ def _check_depth(data, depth: int) -> None:
 
 
 def _check_yaml_size(root) -> None:
-    """Nodes counted as construction would build them (an alias shares its node, counted at every use), in
-    post-order without recursion; a node within itself (a recursive alias) is refused."""
+    """Nodes and scalar bytes counted as construction would build them (an alias shares its node, counted at
+    every use), in post-order without recursion; a node within itself (a recursive alias) is refused."""
     import yaml
 
     def kids(node):
@@ -135,7 +144,7 @@ def _check_yaml_size(root) -> None:
             return [n for pair in node.value for n in pair]
         return list(node.value) if isinstance(node, yaml.SequenceNode) else []
 
-    size, open_ = {}, set()
+    size, text, open_ = {}, {}, set()
     stack = [(root, 0)]
     while stack:
         node, level = stack.pop()
@@ -148,6 +157,10 @@ def _check_yaml_size(root) -> None:
             size[key] = 1 + sum(size[id(k)] for k in kids(node))
             if size[key] > MAX_YAML_NODES:
                 raise UnreadableFile(f"more than {MAX_YAML_NODES} nodes with its aliases expanded")
+            own = len(node.value.encode("utf-8", "surrogatepass")) if isinstance(node, yaml.ScalarNode) else 0
+            text[key] = own + sum(text[id(k)] for k in kids(node))
+            if text[key] > MAX_YAML_BYTES:
+                raise UnreadableFile(f"more than {MAX_YAML_BYTES} bytes of text with its aliases expanded")
             open_.discard(key)
             continue
         open_.add(key)
