@@ -21,6 +21,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.files import read_json, read_yaml_text, write_atomic, write_json_atomic, write_yaml_atomic
 from hybrid_sysid.runs import layout, locks
+from hybrid_sysid.runs.received import NotData, as_data
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -124,9 +125,9 @@ class RunDir:
         return record if is_completed(record) else None
 
     def saved_config(self, key: str = "run") -> DictConfig:
-        """The composed config the run saved; ConfigError naming ``key`` when it has none or it is damaged, and
-        naming the class when it builds one neither this package's nor an installed plugin's (a run made with a
-        plugin not installed here: the package its record names)."""
+        """The composed config the run saved, with this machine's paths (runs.received); ConfigError naming ``key``
+        when it has none, is damaged or reads the environment, and naming the class when it builds one neither
+        this package's nor an installed plugin's (a plugin not installed here: the package its record names)."""
         from hybrid_sysid.config.targets import check_saved  # the config layer, loaded by readers of configs only
 
         if not self.config_file.is_file():
@@ -137,6 +138,10 @@ class RunDir:
             self._damaged(key, layout.CONFIG, exc)
         if not isinstance(cfg, DictConfig):
             self._damaged(key, layout.CONFIG, "not a mapping")
+        try:  # this machine's paths; no interpolation that reads the environment or files (runs.received)
+            as_data(cfg)
+        except NotData as exc:
+            self._damaged(key, layout.CONFIG, str(exc), "is read as data only")
         try:
             record = self.record(key)
         except ConfigError:  # damaged: the refusal of a missing plugin then names no package
