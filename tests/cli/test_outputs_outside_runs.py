@@ -63,3 +63,26 @@ def test_predict_output_inside_a_sweep_is_refused_even_with_overwrite(tmp_path, 
     assert code == 2 and len(err.strip().splitlines()) == 1, err
     assert "it lies inside the run or sweep directory" in err and str(sweep) in err
     assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    "key, target",
+    [
+        ("hydra.run.dir", "run/checkpoints/ev"),  # once a whole evaluation there, and two runs in its report
+        ("hydra.run.dir", "sweep/0/ev"),
+        ("hydra.run.dir", "sweep/ev"),
+        ("hydra.sweep.dir", "run/sw"),
+    ],
+)
+def test_eval_inside_another_run_or_sweep_is_refused_before_any_work(
+    tmp_path, run_and_sweep, cli_in_process, key, target
+):
+    from hybrid_sysid.cli.evaluate import main
+
+    run, sweep = run_and_sweep
+    before = snapshot(tmp_path)
+    args = [f"run={run}", f"{key}={tmp_path / target}", *(["-m"] if key == "hydra.sweep.dir" else [])]
+    code, out, err = cli_in_process(main, *args, cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert f"{key} = {tmp_path / target} is not allowed: it lies inside the run or sweep directory" in err
+    assert snapshot(tmp_path) == before

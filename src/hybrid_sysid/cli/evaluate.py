@@ -23,7 +23,7 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
+from hybrid_sysid.cli.job import Preflight, checks_complete, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import Config, flatten, validate
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
@@ -104,8 +104,30 @@ def validate_saved(cfg: DictConfig, run_dir: Path) -> None:
         bad("run", Shown(str(run_dir)), f"a run whose saved config this version reads ({type(exc).__name__}: {text})")
 
 
+def outside_other_runs(out_dir, key: str) -> None:
+    """The evaluation's directory lies inside no other run or sweep directory (its own, evaluated again, is its
+    own): an evaluation in a run's checkpoints/ once wrote there, and that run's report then listed two runs.
+    predict's output= and the report's results= refuse such paths alike (runs.layout.enclosing_run)."""
+    from hybrid_sysid.runs.layout import enclosing_run
+
+    holder = enclosing_run(Path(str(out_dir)).resolve().parent)
+    if holder is not None:
+        where = "a path outside run and sweep directories, whose files are their record"
+        bad(key, Shown(str(out_dir)), f"it lies inside the run or sweep directory {holder}; {where}")
+
+
 class EvalPreflight(Preflight):
     """Preflight (hybrid_sysid.cli.job) that also builds and checks the config to evaluate."""
+
+    def on_run_start(self, config: DictConfig, **kwargs) -> None:
+        with checks_complete():  # a refusal here ends the command in one line, before any directory
+            outside_other_runs(config.hydra.run.dir, "hydra.run.dir")
+        super().on_run_start(config, **kwargs)
+
+    def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
+        with checks_complete():
+            outside_other_runs(config.hydra.sweep.dir, "hydra.sweep.dir")
+        super().on_multirun_start(config, **kwargs)
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         if OmegaConf.is_missing(cfg, "run"):
