@@ -210,6 +210,37 @@ def _summarise_interrupted_sweep() -> None:
         print(f"sweep interrupted; no summary written ({type(exc).__name__}: {exc})", file=sys.stderr)
 
 
+@contextmanager
+def composition_in_one_line():
+    """Within: a config that does not compose (an unknown option, a wrong type, an unknown key) is one line naming
+    its key, exit status 2 (config/composition.py), not Hydra's lines of options and search path. Hydra reports
+    every exception of its app through ``run_and_report``, the one place that sees them before they are printed;
+    a job's own exceptions pass to it unchanged. HYDRA_FULL_ERROR=1 keeps Hydra's own report."""
+    from hydra._internal import utils
+
+    from hybrid_sysid.config.composition import composition_error
+
+    original = utils.run_and_report
+
+    def run_and_report(func):
+        def reported():
+            try:
+                return func()
+            except Exception as exc:
+                error = None if PROCESS.job_started else composition_error(exc)
+                if error is not None and os.environ.get("HYDRA_FULL_ERROR") != "1":
+                    fail(str(error))
+                raise
+
+        return original(reported)
+
+    utils.run_and_report = run_and_report
+    try:
+        yield
+    finally:
+        utils.run_and_report = original
+
+
 def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
     """A console script around a Hydra app: exit status 2 for a config that does not compose (unknown key, wrong
     type, unknown group option), a missing optional package or an OS error before any job (Hydra itself exits 1
@@ -223,7 +254,8 @@ def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
     if missing:
         fail(missing)
     try:
-        hydra_main()
+        with composition_in_one_line():
+            hydra_main()
     except SystemExit as exc:
         if stop.received() is None and exc.code == 1 and not PROCESS.job_started:
             sys.exit(2)

@@ -1,0 +1,54 @@
+"""A config that does not compose, in one line naming its key: an unknown group option, a value of the wrong type,
+an unknown key, an override that does not parse. Hydra prints these in up to 16 lines (the options, the search
+path, OmegaConf's object types); a refusal everywhere else in the project is one line, ``key = value is not
+allowed: what is allowed``, so these are too."""
+
+from __future__ import annotations
+
+from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
+from omegaconf.errors import OmegaConfBaseException
+
+from hybrid_sysid.core.checks import NO_VALUE, ConfigError
+
+
+def composition_error(exc: BaseException) -> ConfigError | None:
+    """The ConfigError that says what ``exc``, raised while Hydra composed the config, says; None for an exception
+    that is not a composition's (a job's own, which keeps its record and its traceback)."""
+    if isinstance(exc, MissingConfigException):
+        return _missing_option(exc)
+    if isinstance(exc, OverrideParseException):
+        key = str(exc.override).split("=", 1)[0].lstrip("+~") or str(exc.override)
+        return ConfigError(key, allowed=f"an override that parses, key=value ({_words(exc.message)})")
+    if isinstance(exc, ConfigCompositionException):
+        cause = exc.__cause__
+        if isinstance(cause, OmegaConfBaseException) and cause.full_key:
+            value = cause.value if cause.value is not None else NO_VALUE
+            # OmegaConf's message: its first line; the lines after it name the key again and its object types
+            first = (str(cause.msg or cause).strip().splitlines() or [""])[0]
+            return ConfigError(cause.full_key, value, _words(first))
+        lines = [line for line in str(exc).splitlines() if line.strip()]
+        return ConfigError(_override_key(lines[0]) if lines else "the config", allowed=_words(" ".join(lines)))
+    return None
+
+
+def _missing_option(exc: MissingConfigException) -> ConfigError:
+    """``objective=nonexistent``: the group is the key, the value the option, its options what is allowed."""
+    missing = str(exc.missing_cfg_file or "")
+    group, _, option = missing.rpartition("/")
+    options = sorted(exc.options or [])
+    if not group or not options:  # no group's option (the primary config, a --config-name): Hydra's first line
+        return ConfigError(missing or "the config", allowed=_words(str(exc).splitlines()[0]))
+    return ConfigError(group.replace("/", "."), option, f"one of {', '.join(options)}")
+
+
+def _override_key(line: str) -> str:
+    """The key of "Could not override 'trainer.foo'." or "Error merging override data.dt=abc"."""
+    for marker in ("override '", "override "):
+        if marker in line:
+            rest = line.split(marker, 1)[1]
+            return rest.split("'", 1)[0].split("=", 1)[0].lstrip("+~").rstrip(".") or line
+    return "the config"
+
+
+def _words(text: str) -> str:
+    return " ".join(str(text).split())
