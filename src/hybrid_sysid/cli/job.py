@@ -30,6 +30,7 @@ from hybrid_sysid.cli.choices import check_estimator
 from hybrid_sysid.cli.console import job_running, quiet_libraries
 from hybrid_sysid.cli.orphans import exit_with_parent, job_in_progress
 from hybrid_sysid.cli.process import PROCESS, SIGNALS, fail, interruptible, missing_extra_of_sweep, stop_sweep
+from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.core import ranks, stop
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.stop import Interrupted
@@ -119,6 +120,8 @@ def run_job(
                     fail(str(exc))  # a bad value: one line, no traceback
                 if isinstance(exc, OSError):
                     fail(f"{error} (run directory {run_dir})", status=1)  # e.g. a full disk: one line
+                if isinstance(exc, FloatingPointError):  # a NaN loss: the record says why, no traceback adds to it
+                    fail(f"{error} (recorded in {run_dir})", status=1)
             raise
         finally:
             if mine:  # a worker runs several jobs: each job's directory is free again once it ends
@@ -175,6 +178,7 @@ class Preflight(Callback):
             writes_nothing(config)
 
     def _multirun_start(self, config: DictConfig) -> None:
+        check_paths(task_config(config))  # an empty paths.root would make the sweep's directory at the root
         sweep_dir = PROCESS.sweep_dir = Path(str(config.hydra.sweep.dir))
         check_estimator(config)
         # a swept choice's package: one line here, not every job failing

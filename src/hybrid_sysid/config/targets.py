@@ -17,12 +17,14 @@ from __future__ import annotations
 import importlib
 import importlib.util
 import inspect
+import math
+import numbers
 
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import plugins
 from hybrid_sysid.core.checks import ConfigError, bad
-from hybrid_sysid.core.options import CALLBACKS, LOGGERS
+from hybrid_sysid.core.options import CALLBACKS, LOGGERS, MONITORS
 from hybrid_sysid.model.base import Baseline, Network, Objective, lacks
 
 # config key -> (the package whose classes it may name, what such a class must provide)
@@ -61,7 +63,7 @@ def check_target(target, key: str, recorded: dict | None = None) -> None:
             why = plugins.missing(target, family, recorded)
             bad(f"{key}._target_", target, f"a class of {package} or one an installed package declares; {why}")
         named = all(p.isidentifier() and not p.startswith("_") for p in parts)
-        if not named or importlib.util.find_spec(module) is None:
+        if not named or _find_module(module) is None:
             bad(f"{key}._target_", target, f"a class of {package} (a config names only this package's classes)")
         return
     allowed = LIBRARY[family]
@@ -71,6 +73,15 @@ def check_target(target, key: str, recorded: dict | None = None) -> None:
             target,
             f"one of {', '.join(sorted(allowed))} (a config names only this package's and these classes)",
         )
+
+
+def _find_module(name: str):
+    """The module spec of ``name``, None where there is none. A path through a module that is no package
+    (hybrid_sysid.model.networks.nn, the torch.nn it imports) makes find_spec raise: that is no module either."""
+    try:
+        return importlib.util.find_spec(name)
+    except (ImportError, ValueError):
+        return None
 
 
 def known_class(target, key: str) -> type:
@@ -185,3 +196,22 @@ def _no_targets_in(value, key: str) -> None:
     elif isinstance(value, list):
         for v in value:
             _no_targets_in(v, key)
+
+
+def check_objective_members(objective, key: str) -> None:
+    """The values of an objective's members (model/base.py's Objective) as the run reads them: a plugin's
+    ``fir = 42`` would otherwise fail deep in the data module, far from the key that named the class."""
+    if not isinstance(objective.uses_labels, bool):
+        bad(f"{key}.uses_labels", objective.uses_labels, "True or False (Objective, model/base.py)")
+    for name in ("fir", "outside_fir"):
+        taps = getattr(objective, name)
+        if taps is None:
+            continue
+        try:
+            ok = len(taps) >= 1 and all(isinstance(t, numbers.Real) and math.isfinite(t) for t in taps)
+        except TypeError:  # no length, or not iterable
+            ok = False
+        if not ok:
+            bad(f"{key}.{name}", taps, "None, or the band-pass's taps: finite numbers (Objective, model/base.py)")
+    if objective.monitor not in MONITORS[1:]:
+        bad(f"{key}.monitor", objective.monitor, f"one of {', '.join(MONITORS[1:])} (Objective, model/base.py)")

@@ -17,17 +17,27 @@ from dataclasses import asdict, fields
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config.memory import check_memory
+from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.config.schema import SECTIONS
-from hybrid_sysid.config.targets import arguments, build, check_target
+from hybrid_sysid.config.targets import arguments, build, check_objective_members, check_target
+from hybrid_sysid.config.trainer import check_trainer, check_trainer_arguments
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.install import install_command
-from hybrid_sysid.core.options import MONITORS, PROFILERS, TASKS
-from hybrid_sysid.core.ranks import check_world
-from hybrid_sysid.data.spec import SEED_MAX, BatchSettings, DatasetSpec, WindowSettings, check_eval_windows
+from hybrid_sysid.core.options import MONITORS, TASKS
+from hybrid_sysid.data.spec import (
+    NOISE_MAX,
+    NOISE_UNIT,
+    SEED_MAX,
+    BatchSettings,
+    DatasetSpec,
+    WindowSettings,
+    check_eval_windows,
+)
 from hybrid_sysid.model.optim import OptimSettings
 from hybrid_sysid.physics import QuarterCar
 
 CAR_FIELDS = tuple(asdict(QuarterCar()))
+INT_MIN, INT_MAX = -(2**63), 2**63 - 1
 # where the data's owners' arguments lie in the config, where it is not data.<argument>
 CONFIG_PATHS = {
     "road_classes": "road.classes",
@@ -63,7 +73,8 @@ def validate(cfg: DictConfig, training: bool = True) -> None:
     if not (isinstance(figures, bool) or figures == "auto"):
         bad("run_figures", figures, "true, false or auto (a single run's figures, not a sweep job's)")
     _check_noise(cfg)
-    _check_trainer(cfg.trainer)
+    check_paths(cfg)
+    check_trainer(cfg.trainer)
     with _placed("model.optim"):
         OptimSettings(**cfg.model.optim).validate()
     if training:
@@ -78,6 +89,8 @@ def validate(cfg: DictConfig, training: bool = True) -> None:
         _validate_baseline(cfg, spec)
     else:
         _validate_training(cfg, spec)
+        if training:  # Lightning's own checks of the trainer's arguments, trainer.extra's too
+            check_trainer_arguments(cfg.trainer)
     check_eval_windows(cfg.evaluation.windows, WindowSettings.from_config(cfg).n_starts(spec), "evaluation.windows")
 
 
@@ -99,35 +112,15 @@ class _placed:
 
 def _check_noise(cfg: DictConfig) -> None:
     levels = list(cfg.noise.eval_std)
-    if not levels or not all(s >= 0 for s in levels):
-        bad("noise.eval_std", levels, "every standard deviation must be >= 0, at least one level (e.g. [0.0])")
-    curve_std = cfg.noise.get("curve_std")
-    if curve_std is not None and not (curve_std and all(s >= 0 for s in curve_std)):
-        allowed = "a list of standard deviations >= 0 (at least one), or null for eval_std's"
-        bad("noise.curve_std", list(curve_std), allowed)
-
-
-def _check_trainer(t: DictConfig) -> None:
-    if t.max_steps < 1:
-        bad("trainer.max_steps", t.max_steps, "must be >= 1")
-    if t.eval_every_n_steps < 1:
-        bad("trainer.eval_every_n_steps", t.eval_every_n_steps, "must be >= 1")
-    curve_every = t.get("curve_every_n_steps")
-    if curve_every is not None and not (curve_every >= 1 and curve_every % t.eval_every_n_steps == 0):
-        bad(
-            "trainer.curve_every_n_steps",
-            curve_every,
-            f"a multiple of trainer.eval_every_n_steps = {t.eval_every_n_steps} (curve points are taken at "
-            "validations), or null for every validation",
+    if not levels or not all(0 <= s <= NOISE_MAX for s in levels):
+        allowed = (
+            f"every standard deviation must lie in [0, {NOISE_MAX:g}] ({NOISE_UNIT}), at least one level (e.g. [0.0])"
         )
-    if t.threads is not None and t.threads < 1:
-        bad("trainer.threads", t.threads, "must be >= 1, or null for torch's default")
-    check_choice("trainer.monitor", t.monitor, MONITORS)
-    check_world(t.get("num_nodes", 1), t.devices)  # against the processes the launcher started (core.ranks)
-    if not (isinstance(t.progress_bar, bool) or t.progress_bar == "auto"):
-        bad("trainer.progress_bar", t.progress_bar, "true, false or auto (a bar when stdout is a terminal)")
-    if t.get("profiler") is not None:
-        check_choice("trainer.profiler", t.profiler, PROFILERS)
+        bad("noise.eval_std", levels, allowed)
+    curve_std = cfg.noise.get("curve_std")
+    if curve_std is not None and not (curve_std and all(0 <= s <= NOISE_MAX for s in curve_std)):
+        allowed = f"a list of standard deviations >= 0 and <= {NOISE_MAX:g} (at least one), or null for eval_std's"
+        bad("noise.curve_std", list(curve_std), allowed)
 
 
 def _check_task(cfg: DictConfig) -> None:
@@ -165,7 +158,8 @@ def _check_known_keys(cfg: DictConfig) -> None:
 
 
 def _check_finite(value, key: str) -> None:
-    """inf or nan anywhere a float is accepted (noise levels, rates, time step, speed, weights...)."""
+    """inf or nan anywhere a float is accepted (noise levels, rates, time step, speed, weights...), and an integer
+    beyond 64 bits anywhere (numpy and torch would overflow on it, far from its key)."""
     if isinstance(value, dict):
         for k, v in value.items():
             _check_finite(v, f"{key}.{k}" if key else str(k))
@@ -176,6 +170,8 @@ def _check_finite(value, key: str) -> None:
             _check_finite(v, key)
     elif isinstance(value, float) and not math.isfinite(value):
         bad(key, value, "must be finite")
+    elif isinstance(value, int) and not isinstance(value, bool) and not INT_MIN <= value <= INT_MAX:
+        bad(key, value, f"an integer in [{INT_MIN}, {INT_MAX}] (64 bits, as numpy and torch hold it)")
 
 
 def _built(cfg: DictConfig, key: str):
@@ -199,9 +195,12 @@ def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
     cls, net_args = arguments(cfg.model.net, "model.net")
     try:
         bounds = cls.window_bounds(**net_args)
+    except ConfigError as exc:  # the network's own check of an argument: placed under model.net
+        raise exc.under("model.net") from None
     except Exception as exc:  # noqa: BLE001 - e.g. a value of the wrong type
         raise ConfigError("model.net", allowed=_one_line(exc)) from exc
     objective = _built(cfg, "objective")
+    check_objective_members(objective, "objective")
     taps, outside = (None if f is None else len(f) for f in (objective.fir, objective.outside_fir))
     with _placed():
         WindowSettings.from_config(cfg).validate(spec, bounds, taps, outside)

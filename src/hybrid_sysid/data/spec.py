@@ -28,6 +28,12 @@ OUTSIDE_DATA = {"road_classes", "car", "sensor"}
 # the samples a band-pass must leave of each window (objective.filter, the least-squares baselines)
 MIN_FILTERED = 10
 SEED_MAX = 2**32 - 1  # numpy's and Lightning's seeds are 32-bit unsigned
+# a car's constant above this (kg, N/m, N s/m; a car's are 1e2 to 1e5) overflows the stability search's matrices
+CAR_MAX = 1e9
+# kappa above this: at d = 1 cm the cubic force is 1000 times the linear one, and a class E road's motion then
+# overflows the semi-implicit step into NaN (the step's stability is that of the linearised car)
+HARDENING_MAX = 1e7
+HARDENING_UNIT = "1/m^2; 35000 in car=hardening_seat"
 
 
 @dataclass(frozen=True)
@@ -74,9 +80,9 @@ class DatasetSpec:
             bad("seed", self.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
         for name, value in asdict(self.car).items():
             if name == "seat_hardening":  # 0: the linear seat spring
-                check_number("car.seat_hardening", value, 0, unit="1/m^2")
-            elif not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
-                bad(f"car.{name}", value, "must be finite and > 0")
+                check_number("car.seat_hardening", value, 0, HARDENING_MAX, unit=HARDENING_UNIT)
+            elif not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= CAR_MAX):
+                bad(f"car.{name}", value, f"must be finite and > 0, at most {CAR_MAX:g} (kg, N/m, N s/m)")
         if self.car.seat_hardening and self.measurement not in STEPPED:
             bad(
                 "car.seat_hardening",
@@ -233,6 +239,12 @@ def check_eval_windows(windows, n_starts: int, key: str = "windows") -> None:
         )
 
 
+# a noise std above this buries every road's accelerations (a few m/s^2) a thousand times over, and at 1e300 the
+# noisy windows overflow float32: the loss is NaN at the first step
+NOISE_MAX = 1000.0
+NOISE_UNIT = "m/s^2, a road's accelerations are a few m/s^2"
+
+
 @dataclass(frozen=True)
 class BatchSettings:
     """How the data module serves training batches: their size and the Gaussian noise added to their windows."""
@@ -245,12 +257,13 @@ class BatchSettings:
     def validate(self) -> None:
         check_int("batch_size", self.batch_size, 1)
         check_number("train_std", self.train_std, 0, unit="m/s^2")
+        check_number("train_std", self.train_std, high=NOISE_MAX, unit=NOISE_UNIT)
         if self.train_std_max is not None:
             if not self.train_std > 0:
                 bad(
                     "train_std_max", self.train_std_max, "null unless train_std > 0 (the bottom of a log-uniform range)"
                 )
-            check_number("train_std_max", self.train_std_max, self.train_std, low_open=True, unit="m/s^2, > train_std")
+            check_number("train_std_max", self.train_std_max, self.train_std, NOISE_MAX, low_open=True, unit=NOISE_UNIT)
 
     @property
     def val_std(self) -> float:
