@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import copy
 import logging
-import os
 import signal
 import sys
 import threading
@@ -29,7 +28,15 @@ from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 from hybrid_sysid.cli.choices import check_estimator
 from hybrid_sysid.cli.console import job_running, quiet_libraries
 from hybrid_sysid.cli.orphans import exit_with_parent, job_in_progress
-from hybrid_sysid.cli.process import PROCESS, SIGNALS, fail, interruptible, missing_extra_of_sweep, stop_sweep
+from hybrid_sysid.cli.process import (
+    PROCESS,
+    SIGNALS,
+    fail,
+    full_error,
+    interruptible,
+    missing_extra_of_sweep,
+    stop_sweep,
+)
 from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.core import ranks, stop
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
@@ -115,7 +122,7 @@ def run_job(
             if multirun:  # let the other jobs run; the sweep summary exits non-zero
                 log.error("job failed: %s", error)
                 return {"status": "failed", "error": error}
-            if os.environ.get("HYDRA_FULL_ERROR") != "1":
+            if not full_error():
                 if isinstance(exc, (ConfigError, CompletedRecordError)):
                     fail(str(exc))  # a bad value: one line, no traceback
                 if isinstance(exc, OSError):

@@ -188,9 +188,19 @@ def sweep_stopped(sweep_dir: Path) -> bool:
     return stop.received() is not None or (sweep_dir / STOP_MARKER).exists()
 
 
+# set beside HYDRA_FULL_ERROR by composition_in_one_line, so its own setting (inherited by a sweep's workers too)
+# is not taken for a user's request for full tracebacks
+SET_HERE = "HYBRID_SYSID_SET_FULL_ERROR"
+
+
+def full_error() -> bool:
+    """Whether the user asked for Hydra's full tracebacks (HYDRA_FULL_ERROR=1)."""
+    return os.environ.get("HYDRA_FULL_ERROR") == "1" and os.environ.get(SET_HERE) != "1"
+
+
 def fail(message: str, status: int = 2):
     print(f"error: {message}", file=sys.stderr)
-    if os.environ.get("HYDRA_FULL_ERROR") == "1":
+    if full_error():
         traceback.print_exc()
     sys.exit(status)
 
@@ -213,32 +223,34 @@ def _summarise_interrupted_sweep() -> None:
 @contextmanager
 def composition_in_one_line():
     """Within: a config that does not compose (an unknown option, a wrong type, an unknown key) is one line naming
-    its key, exit status 2 (config/composition.py), not Hydra's lines of options and search path. Hydra reports
-    every exception of its app through ``run_and_report``, the one place that sees them before they are printed;
-    a job's own exceptions pass to it unchanged. HYDRA_FULL_ERROR=1 keeps Hydra's own report."""
-    from hydra._internal import utils
-
+    its key, exit status 2 (config/composition.py), not Hydra's lines of options and search path. Hydra re-raises
+    its app's exceptions instead of printing them where HYDRA_FULL_ERROR=1 (its documented switch), so it is set
+    here and the exceptions reach this block; any other exception is printed with its traceback, exit 1, as Hydra
+    would. A user's own HYDRA_FULL_ERROR=1 keeps every exception as it is."""
     from hybrid_sysid.config.composition import composition_error
 
-    original = utils.run_and_report
-
-    def run_and_report(func):
-        def reported():
-            try:
-                return func()
-            except Exception as exc:
-                error = None if PROCESS.job_started else composition_error(exc)
-                if error is not None and os.environ.get("HYDRA_FULL_ERROR") != "1":
-                    fail(str(error))
-                raise
-
-        return original(reported)
-
-    utils.run_and_report = run_and_report
+    users = os.environ.get("HYDRA_FULL_ERROR")
+    if users != "1":
+        os.environ.update({"HYDRA_FULL_ERROR": "1", SET_HERE: "1"})
     try:
         yield
+    except Exception as exc:
+        if users == "1":
+            raise
+        error = None if PROCESS.job_started else composition_error(exc)
+        if error is not None:
+            fail(str(error))
+        if isinstance(exc, OSError):  # console_main's own line (an OS error before any job)
+            raise
+        traceback.print_exception(exc)
+        sys.exit(1)
     finally:
-        utils.run_and_report = original
+        if users != "1":
+            os.environ.pop(SET_HERE, None)
+            if users is None:
+                os.environ.pop("HYDRA_FULL_ERROR", None)
+            else:
+                os.environ["HYDRA_FULL_ERROR"] = users
 
 
 def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
@@ -263,7 +275,7 @@ def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
             raise
         _summarise_interrupted_sweep()  # unless the sweep's end wrote it: Hydra broke off before (a worker killed)
     except OSError as exc:
-        if PROCESS.job_started or os.environ.get("HYDRA_FULL_ERROR") == "1":
+        if PROCESS.job_started or full_error():
             raise
         fail(f"{type(exc).__name__}: {exc}")
     except BaseException:
