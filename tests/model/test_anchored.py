@@ -138,8 +138,8 @@ def test_the_config_anchors_on_eiv_and_model_net_anchor_ls_is_the_least_squares_
 
 
 def test_the_fault_the_config_simulates_reaches_the_errors_in_variables_fit(make_cfg, monkeypatch):
-    """fix: ${fault_fix:} in conf/model/anchored.yaml; the fit gets ``fix`` when there is a fault, nothing
-    more when there is none (so a fit without the argument still serves clean data)."""
+    """fix: ${fault_fix:} in conf/model/anchored.yaml; both fits (the likelihood and the MAP) get ``fix`` when
+    there is a fault, nothing more when there is none (so a fit without the argument still serves clean data)."""
     given = []
 
     class Recorder(ErrorsInVariablesFit):
@@ -152,9 +152,12 @@ def test_the_fault_the_config_simulates_reaches_the_errors_in_variables_fit(make
         assert cfg.model.net.fix == fix
         net_args = {k: v for k, v in cfg.model.net.items() if k != "_target_"}
         AnchoredCNN(**net_args)
-        assert given[-1].get("fix") == (None if fix == "none" else fix) and given[-1]["noise_ratio"] == 1.0
+        ml, map_ = given[-2:]  # the likelihood fit, then the MAP fit of the config's prior
+        assert "prior" not in ml and map_["prior"] == net_args["prior"]
+        for arguments in (ml, map_):
+            assert arguments.get("fix") == (None if fix == "none" else fix) and arguments["noise_ratio"] == 1.0
     AnchoredCNN(P_MIN, P_MAX, dt=DT, anchor="ls", fix="gain")  # the least-squares anchor has no fix to take
-    assert len(given) == 4
+    assert len(given) == 8
 
 
 def test_bad_values_are_one_line_errors_naming_the_key():

@@ -40,6 +40,22 @@ def test_the_loss_is_the_weighted_l1_with_undefined_rows_left_out():
     loss.backward()  # finite gradients, whatever the undefined row
 
 
+def test_unweighted_every_defined_row_counts_alike():
+    rng = np.random.default_rng(1)
+    pred = rng.uniform([4, 600], [12, 1800], size=(6, 2))
+    p_out = rng.uniform([4, 600], [12, 1800], size=(6, 2))
+    se = rng.uniform(0.001, 0.3, size=(6, 2))
+    p_out[4, 1], se[4, 1] = np.nan, np.inf
+    batch = {"p_out": torch.tensor(p_out), "se_out": torch.tensor(se)}
+    loss = objective(weighted=False)(torch.tensor(pred), batch)
+    defined = np.isfinite(p_out)
+    w = defined / defined.mean(axis=0)
+    err = np.where(defined, np.abs(pred - np.nan_to_num(p_out)) / SCALE, 0.0)
+    assert loss.item() == pytest.approx((w * err).sum(axis=1).mean(), rel=1e-12)
+    with pytest.raises(ConfigError, match="weighted"):
+        objective(weighted="no")
+
+
 @pytest.mark.parametrize("target", ["eiv", "ls"])
 def test_on_clean_recordings_it_is_the_labelled_objective(target):
     spec = DatasetSpec(n_roads=6, n_masses=4, n_steps=800, seed=5, seat_spread=0.3)

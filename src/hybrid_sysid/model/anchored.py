@@ -4,7 +4,7 @@ be, and a network for the rest (docs/design.md, "The anchored estimator").
 Per window and parameter, p = w p_fit + (1 - w) p_net with w = tau^2 / (tau^2 + se^2): se is the fit's own
 relative standard error, and the network gives both p_net and tau from the window and the fit's statistics. The
 fit (``anchor``) is the errors-in-variables maximum likelihood (baselines.errors_in_variables) or the band-passed
-least squares (physics.seat_fit).
+least squares (physics.seat_fit). With a ``prior``, p_net is the window's MAP fit times a learned factor.
 """
 
 from __future__ import annotations
@@ -28,7 +28,9 @@ from hybrid_sysid.physics.seat_fit import SeatFit, fit_windows
 # of integrated noise below it and the white noise above it
 DEFAULT_FILTER = {"low_hz": 4.0, "high_hz": 20.0, "taps": 151}
 N_STATS = 8  # what the head reads of the fit: log p (2), log se (2), unexplained share, correlation, valid (2)
+N_PRIOR_STATS = 5  # and of the MAP fit, with a prior: log p (2), log se (2), valid
 ANCHORS = ("eiv", "ls")
+MAX_FACTOR = 2.0  # |log| of the factor the network may put on the MAP fit: a correction, not a new estimate
 
 
 class AnchoredCNN(FastCNN):
@@ -53,9 +55,20 @@ class AnchoredCNN(FastCNN):
     fix: the classical fix of the fault the config simulates (``${fault_fix:}``, core.options.FIXES), handed to
         the errors-in-variables fit as its ``fix`` when it is not "none"; the least-squares anchor ignores it.
 
+    prior: None, or the simulator's draws of the seat as the MAP baseline takes them (``PRIOR_KEYS``; conf/model/
+        anchored.yaml fills it from the data and car sections). Then p_net = p_map exp(delta): the window's MAP
+        fit (``ErrorsInVariablesFit`` with that prior and the fix) times a factor the head learns, |delta| <=
+        log ``MAX_FACTOR``, 0 before training (the last layer starts at zero). Where the data leave p loose the
+        prior decides the MAP fit, and the network only corrects it; where they do not, the gate keeps the
+        likelihood fit. A network that learns p_net from scratch has to rediscover the prior from its
+        objective; a label-free objective's targets carry noise as large as the window's own error at noise
+        0.03, and the network then missed the MAP fit it could have started from (docs/design.md).
+    trunk: False: the head reads the fits' statistics alone, without the convolutional trunk's features of the
+        window (with a prior, those statistics hold what the trunk found, at a fraction of a step's cost).
+
     The head reads the pooled features of the window, log p and log se of the anchor, and the least-squares fit's
     unexplained share and regressor correlation (``physics.seat_fit.SeatFit``), so p_net can also learn what is
-    left of the fit's error from how much of the seat it explains.
+    left of the fit's error from how much of the seat it explains; with a prior, also the MAP fit's log p and se.
     """
 
     prior_arguments = ("p_min", "p_max")
@@ -71,6 +84,8 @@ class AnchoredCNN(FastCNN):
         tau_max: float = 1.0,
         anchor: str = "ls",
         fix: str = "none",
+        prior: dict | None = None,
+        trunk: bool = True,
         **cnn,
     ):
         super().__init__(p_min, p_max, **cnn)
@@ -89,9 +104,22 @@ class AnchoredCNN(FastCNN):
             # a fault's fix only when there is one, so a clean config needs nothing of the fit beyond its band
             extra = {} if fix == "none" else {"fix": fix}
             self.eiv = ErrorsInVariablesFit(noise_ratio=1.0, dt=self.dt, **band, **extra)
+        self.map = None
+        if prior is not None:
+            extra = {} if fix == "none" else {"fix": fix}
+            self.map = ErrorsInVariablesFit(noise_ratio=1.0, prior=dict(prior), dt=self.dt, **band, **extra)
+        if not isinstance(trunk, bool):
+            bad("trunk", trunk, "true or false")
+        self.trunk = trunk
+        if not trunk:  # no parameters that nothing reads (weight decay, DDP's unused-parameter check)
+            self.features = nn.Sequential()
         self.log_tau = (math.log(tau_min), math.log(tau_max) - math.log(tau_min))
         width = self.head.in_features
-        self.head = nn.Sequential(nn.Linear(width + N_STATS, width), nn.ReLU(), nn.Linear(width, 4))
+        n_in = (width if trunk else 0) + N_STATS + (0 if prior is None else N_PRIOR_STATS)
+        self.head = nn.Sequential(nn.Linear(n_in, width), nn.ReLU(), nn.Linear(width, 4))
+        if prior is not None:  # p_net starts as the MAP fit itself
+            nn.init.zeros_(self.head[-1].weight)
+            nn.init.zeros_(self.head[-1].bias)
 
     @staticmethod
     def window_bounds(n_layers: int = 4, filter: dict | None = None, **arguments) -> tuple[int, None]:
@@ -113,18 +141,41 @@ class AnchoredCNN(FastCNN):
         p, se = self.eiv.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement, guarded=True)
         return SeatFit(p, se, fit.unexplained, fit.correlation)
 
+    def map_fit(self, signals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """The MAP fit's p and se (B, 2) of each window, in the signals' dtype (NaN p where not defined)."""
+        x = signals.detach().to("cpu", torch.float64).numpy()
+        p, se = self.map.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
+        return torch.from_numpy(p).to(signals), torch.from_numpy(se).to(signals)
+
+    def _stats(self, p, se):
+        """log p about the head's centre, log10 se, and where p is defined and positive."""
+        valid = torch.isfinite(p) & (p > 0)
+        mid = self.log_lo + self.log_span / 2  # the centre of the head's range, in log p
+        ratio = torch.where(valid, torch.log(p.clamp_min(1e-30)) - mid, 0.0).clamp(-4, 4)
+        log_se = torch.where(valid & ~torch.isnan(se), torch.log10(se.clamp_min(1e-12)), 1.0).clamp(-8, 1) / 4
+        return ratio, log_se, valid
+
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         fit = self.anchor(signals)
         p_fit, se = (torch.from_numpy(a).to(signals) for a in (fit.p, fit.se))
-        valid = torch.isfinite(p_fit) & (p_fit > 0)
-        mid = self.log_lo + self.log_span / 2  # the centre of the head's range, in log p
-        ratio = torch.where(valid, torch.log(p_fit.clamp_min(1e-30)) - mid, 0.0).clamp(-4, 4)
-        log_se = torch.where(valid, torch.log10(se.clamp_min(1e-12)), 1.0).clamp(-8, 1) / 4
+        ratio, log_se, valid = self._stats(p_fit, se)
         unexplained = torch.from_numpy(np.log10(np.clip(fit.unexplained, 1e-12, 1.0)) / 6).to(signals)
         rho = torch.from_numpy(fit.correlation).to(signals)
-        stats = torch.cat([ratio, log_se, unexplained[:, None], rho[:, None], valid.to(signals)], dim=1)
-        out = self.head(torch.cat([self.embed(signals), stats], dim=1))
+        parts = [ratio, log_se, unexplained[:, None], rho[:, None], valid.to(signals)]
+        if self.map is not None:
+            p_map, se_map = self.map_fit(signals)
+            map_ratio, map_log_se, map_valid = self._stats(p_map, se_map)
+            map_valid = map_valid.all(dim=1, keepdim=True)
+            parts += [map_ratio, map_log_se, map_valid.to(signals)]
+        if self.trunk:
+            parts.insert(0, self.embed(signals))
+        out = self.head(torch.cat(parts, dim=1))
         p_net = self.bounded(out[:, :2])
+        if self.map is not None:
+            delta = math.log(MAX_FACTOR) * torch.tanh(out[:, :2])
+            # NaN in the branch torch.where drops would still reach the gradient as 0 * NaN
+            p_map = torch.where(map_valid, p_map, 1.0)
+            p_net = torch.where(map_valid, p_map * torch.exp(delta), p_net)
         tau = torch.exp(self.log_tau[0] + self.log_tau[1] * torch.sigmoid(out[:, 2:]))
         w = torch.where(valid, tau.pow(2) / (tau.pow(2) + se.pow(2)), 0.0)
         return w * torch.where(valid, p_fit, p_net) + (1 - w) * p_net
