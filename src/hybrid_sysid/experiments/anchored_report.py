@@ -1,5 +1,6 @@
 """What experiment=anchored adds to its table's report (report.extras): the error against noise, one line per
-estimator, the least-squares rows dashed, one row of panels per fault and one panel per parameter."""
+estimator, the least-squares rows dashed, one row of panels per fault and one panel per parameter; and the label-free
+anchored estimators' targets (experiments.anchored_targets)."""
 
 from __future__ import annotations
 
@@ -7,6 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
+from hybrid_sysid.experiments.anchored_targets import targets_markdown
 from hybrid_sysid.report.extras import Extra, register
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
@@ -61,4 +63,12 @@ def anchored_figure(table: pd.DataFrame, path: Path, k: int = 1) -> None:
     save_figure(fig, path, f"anchored: test split, K = {k}, mean ± std over seeds (below {FLOOR:g}% drawn at it)")
 
 
-register(Extra(ESTIMATOR, figures={"anchored": anchored_figure}, compare=ESTIMATOR, paper_car=False))
+register(
+    Extra(
+        ESTIMATOR,
+        figures={"anchored": anchored_figure},
+        markdown=targets_markdown,
+        compare=ESTIMATOR,
+        paper_car=False,
+    )
+)

@@ -1,0 +1,151 @@
+"""The targets of the label-free anchored estimator against the classical fits, as experiment=anchored's report states
+them (docs/results_notes.md, "The anchored estimator"): per fault, noise level and parameter, the label-free
+estimator's mean relative deviation, the reference it is held to, their ratio with a paired bootstrap interval
+over recordings, the Wilcoxon signed-rank test of the pairs, and whether the goal is met.
+
+Pairs: every run of one seed evaluates the same test windows with the same noise (the data module's seeded draws),
+so an estimator's deviation on a recording pairs with another's on that recording and seed. The interval resamples
+those pairs, pooled over the seeds, with a fixed seed of its own: the same runs give the same table.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pandas as pd
+
+from hybrid_sysid.report.collect import load_predictions, load_runs
+from hybrid_sysid.report.markdown import markdown_table
+from hybrid_sysid.report.stats import CONFIDENCE, wilcoxon_p
+
+CANDIDATES = ("anchored_cross_segment", "anchored_label_free")  # the label-free anchored estimators
+CLASSICAL = ("ls", "eiv", "eiv_map")  # the fits without a network, fixes aside
+EXACT = 1e-4  # 0.01%: "exact" on clean consistent windows
+RESAMPLES = 2000
+
+
+@dataclass(frozen=True)
+class Goal:
+    """At ``noise``: the candidate's error at most ``factor`` times the reference's (``reference`` an estimator,
+    "best classical" the classical fit with the lowest mean, or None for an absolute ``limit``)."""
+
+    noise: float
+    reference: str | None
+    factor: float = 1.0
+    limit: float | None = None
+    strict: bool = False
+
+
+CLEAN_GOALS = {
+    "p1": [Goal(0.0, None, limit=EXACT), Goal(0.003, "eiv", 1.03), Goal(0.01, "eiv", 1.03),
+           Goal(0.03, "eiv_map"), Goal(0.1, None, limit=0.185)],
+    "p2": [Goal(0.0, None, limit=EXACT), Goal(0.003, "eiv", 1.03), Goal(0.01, "eiv", 1.03),
+           Goal(0.03, "eiv_map"), Goal(0.1, "best classical", strict=True)],
+}  # fmt: skip
+
+
+def _goals(fault: str, levels) -> dict[str, list[Goal]]:
+    if fault == "clean":
+        return CLEAN_GOALS
+    return {p: [Goal(n, "eiv_fix", 1.1) for n in levels] for p in ("p1", "p2")}
+
+
+def _paired(devs: pd.DataFrame, a: str, b: str) -> tuple[np.ndarray, np.ndarray]:
+    """The deviations of estimators a and b on the (seed, recording) pairs both evaluated."""
+    wide = devs[devs.estimator.isin([a, b])].pivot_table(
+        index=["seed", "recording"], columns="estimator", values="rel_dev", aggfunc="first"
+    )
+    if a not in wide or b not in wide:
+        return np.empty(0), np.empty(0)
+    wide = wide[[a, b]].dropna()
+    return wide[a].to_numpy(), wide[b].to_numpy()
+
+
+def ratio_interval(a: np.ndarray, b: np.ndarray, seed: int = 0) -> tuple[float, float]:
+    """The CONFIDENCE percentile interval of mean(a) / mean(b) over RESAMPLES bootstrap draws of the pairs."""
+    rng = np.random.default_rng(seed)
+    idx = rng.integers(0, len(a), size=(RESAMPLES, len(a)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratios = a[idx].mean(axis=1) / b[idx].mean(axis=1)
+    tail = (1 - CONFIDENCE) / 2 * 100
+    low, high = np.nanpercentile(ratios, [tail, 100 - tail])
+    return float(low), float(high)
+
+
+def target_rows(devs: pd.DataFrame, candidate: str) -> list[list[str]]:
+    """The table's rows for one candidate; ``devs``: run, estimator, fault, seed, noise_std, recording,
+    parameter, rel_dev at K = 1."""
+    rows = []
+    for fault in dict.fromkeys(devs.fault):
+        sub = devs[devs.fault == fault]
+        levels = sorted(set(sub.noise_std))
+        for param, goals in _goals(fault, levels).items():
+            for goal in goals:
+                here = sub[(sub.parameter == param) & np.isclose(sub.noise_std, goal.noise)]
+                mine = here[here.estimator == candidate]
+                if mine.empty:
+                    continue
+                value = mine.rel_dev.mean()
+                rows.append(_row(fault, goal, param, candidate, value, here))
+    return [r for r in rows if r is not None]
+
+
+def _row(fault, goal: Goal, param, candidate, value, here) -> list[str] | None:
+    pct = lambda v: f"{100 * v:.2f}"  # noqa: E731
+    head = [fault, f"{goal.noise:g}", param, pct(value)]
+    if goal.reference is None:
+        met = value <= goal.limit
+        return [*head, "-", "-", "-", f"<= {pct(goal.limit)}%", "yes" if met else "**no**", "-"]
+    reference = goal.reference
+    if reference == "best classical":
+        means = {e: here[here.estimator == e].rel_dev.mean() for e in CLASSICAL if (here.estimator == e).any()}
+        if not means:
+            return None
+        reference = min(means, key=means.get)
+    a, b = _paired(here, candidate, reference)
+    if not len(a):
+        return None
+    if goal.noise == 0 and b.mean() <= EXACT:  # where the fixed fit is exact, so must the candidate be
+        met = a.mean() <= EXACT
+        return [*head, reference, pct(b.mean()), "-", f"<= {pct(EXACT)}%", "yes" if met else "**no**", "-"]
+    ratio = a.mean() / b.mean() if b.mean() > 0 else float("inf")
+    low, high = ratio_interval(a, b)
+    met = ratio < goal.factor if goal.strict else ratio <= goal.factor
+    sign = "<" if goal.strict else "<="
+    return [
+        *head,
+        reference,
+        pct(b.mean()),
+        f"{ratio:.3f} [{low:.3f}, {high:.3f}]",
+        f"{sign} {goal.factor:g}x",
+        "yes" if met else "**no**",
+        f"{wilcoxon_p(a, b):.2g}",
+    ]
+
+
+def targets_markdown(paths) -> str:
+    """The targets table of the sweeps at ``paths`` (an empty string when they hold no label-free anchored run
+    beside the classical fits)."""
+    root, df = load_runs(paths)
+    if "estimator" not in df or not df.estimator.isin(CANDIDATES).any() or not df.estimator.isin(CLASSICAL).any():
+        return ""
+    runs = df.drop_duplicates("run").set_index("run")
+    devs = load_predictions(root, df)
+    devs = devs[devs.windows == 1]
+    for key in ("estimator", "fault", "seed"):
+        default = "clean" if key == "fault" else ""
+        devs[key] = devs.run.map(runs[key]) if key in runs else default
+    tables = {c: target_rows(devs, c) for c in CANDIDATES if (devs.estimator == c).any()}
+    tables = {c: rows for c, rows in tables.items() if rows}
+    if not tables:
+        return ""
+    header = ["fault", "noise", "parameter", "value [%]", "reference", "its value [%]",
+              f"ratio [{CONFIDENCE:.0%} interval]", "goal", "met", "Wilcoxon p"]  # fmt: skip
+    text = (
+        "Targets of the label-free anchored estimators (K = 1; the mean over seeds and recordings; the ratio's "
+        "interval a paired bootstrap over recordings; p the Wilcoxon signed-rank test of the pairs).\n\n"
+    )
+    for c, rows in tables.items():
+        text += f"`estimator={c}`\n\n" + markdown_table(header, rows, n_left=3) + "\n\n"
+    return text.rstrip() + "\n"
