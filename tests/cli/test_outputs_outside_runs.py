@@ -6,6 +6,7 @@ import shutil
 
 import numpy as np
 import pytest
+from omegaconf import OmegaConf
 
 from helpers.estimator_run import predict
 from helpers.tree import snapshot
@@ -86,3 +87,42 @@ def test_eval_inside_another_run_or_sweep_is_refused_before_any_work(
     assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
     assert f"{key} = {tmp_path / target} is not allowed: it lies inside the run or sweep directory" in err
     assert snapshot(tmp_path) == before
+
+
+@pytest.mark.parametrize(
+    "key, target",
+    [
+        ("hydra.run.dir", "run/checkpoints/tr"),  # once a whole run trained there, and two runs in its report
+        ("hydra.run.dir", "sweep/0/tr"),
+        ("hydra.run.dir", "sweep/tr"),
+        ("hydra.sweep.dir", "run/sw"),
+    ],
+)
+def test_training_inside_another_run_or_sweep_is_refused_before_any_work(
+    tmp_path, run_and_sweep, cli_in_process, key, target
+):
+    from hybrid_sysid.cli.train import main
+
+    before = snapshot(tmp_path)
+    args = ["data=tiny", "trainer=debug", "trainer.max_steps=2", f"{key}={tmp_path / target}"]
+    code, out, err = cli_in_process(main, *args, *(["-m"] if key == "hydra.sweep.dir" else []), cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert f"{key} = {tmp_path / target} is not allowed: it lies inside the run or sweep directory" in err
+    assert snapshot(tmp_path) == before
+
+
+def test_a_sweeps_job_resumed_in_its_sweep_directory_is_not_refused(tmp_path, run_and_sweep, cli_in_process):
+    """resume= of a sweep's job: its directory lies in the sweep's (multirun.yaml), as every job's does. The
+    completed job is skipped, none of its files written (the lock and the log are the command's own)."""
+    from hybrid_sysid.cli.train import main
+
+    from helpers.estimator_run import TINY
+
+    run, sweep = run_and_sweep
+    cache = OmegaConf.load(run / ".hydra" / "config.yaml").data.cache_dir
+    before = snapshot(tmp_path)
+    code, out, err = cli_in_process(main, *TINY, f"data.cache_dir={cache}", f"resume={sweep / '0'}", cwd=tmp_path)
+    assert code == 0, err[-2000:]
+    assert "inside the run or sweep directory" not in err
+    after = snapshot(tmp_path)
+    assert {p: after[p] for p in before if not after[p][0]} == {p: v for p, v in before.items() if not v[0]}

@@ -24,6 +24,7 @@ from hybrid_sysid import config
 from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import validate
+from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -33,6 +34,14 @@ class TrainPreflight(Preflight):
     """Preflight (hybrid_sysid.cli.job) that also checks the config's values and its ``resume=`` directory."""
 
     saves_task_config = True
+
+    def _run_start(self, config: DictConfig) -> None:
+        outside_other_runs(Path(str(config.hydra.run.dir)), "hydra.run.dir", config.get("resume"))
+        super()._run_start(config)
+
+    def _multirun_start(self, config: DictConfig) -> None:
+        outside_other_runs(Path(str(config.hydra.sweep.dir)), "hydra.sweep.dir")
+        super()._multirun_start(config)
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
@@ -44,6 +53,23 @@ class TrainPreflight(Preflight):
             from hybrid_sysid.runs.resume import check_resume
 
             check_resume(RunDir(str(cfg.resume)), cfg, overrides)
+
+
+def outside_other_runs(out_dir: Path, key: str, resume=None) -> None:
+    """A run or sweep lies inside no other run or sweep directory: a run in a completed run's checkpoints/ once
+    trained there, and that run's report then listed two runs (eval refuses the same: cli.evaluate). A sweep's
+    job lives in its sweep's directory, so ``resume=`` of that job (its parent holds multirun.yaml) is allowed."""
+    from hybrid_sysid.runs.layout import SWEEP_CONFIG, enclosing_run
+
+    here = out_dir.resolve()
+    holder = enclosing_run(here.parent)
+    if holder is None:
+        return
+    own_job = holder == here.parent and (holder / SWEEP_CONFIG).is_file()
+    if resume and own_job and Path(str(resume)).resolve() == here:
+        return
+    where = "a path outside run and sweep directories, whose files are their record"
+    bad(key, Shown(str(out_dir)), f"it lies inside the run or sweep directory {holder}; {where}")
 
 
 def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, hc=None) -> dict:
