@@ -21,7 +21,7 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, draws_figures, run_job
+from hybrid_sysid.cli.job import Preflight, checks_complete, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main
 from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import Shown, bad
@@ -35,13 +35,15 @@ class TrainPreflight(Preflight):
 
     saves_task_config = True
 
-    def _run_start(self, config: DictConfig) -> None:
-        outside_other_runs(Path(str(config.hydra.run.dir)), "hydra.run.dir", config.get("resume"))
-        super()._run_start(config)
+    def on_run_start(self, config: DictConfig, **kwargs: Any) -> None:
+        with checks_complete():  # a refusal here ends the command in one line, before any directory
+            outside_other_runs(Path(str(config.hydra.run.dir)), "hydra.run.dir", config.get("resume"))
+        super().on_run_start(config, **kwargs)
 
-    def _multirun_start(self, config: DictConfig) -> None:
-        outside_other_runs(Path(str(config.hydra.sweep.dir)), "hydra.sweep.dir")
-        super()._multirun_start(config)
+    def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
+        with checks_complete():
+            outside_other_runs(Path(str(config.hydra.sweep.dir)), "hydra.sweep.dir")
+        super().on_multirun_start(config, **kwargs)
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
