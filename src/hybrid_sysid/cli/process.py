@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from hybrid_sysid.cli.console import tolerant_streams
+from hybrid_sysid.cli.overrides import quoted_overrides
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.install import install_command
 from hybrid_sysid.runs.layout import STOP_MARKER
@@ -259,6 +260,7 @@ def console_main(hydra_main: Callable[[], Any], args: list[str]) -> None:
     for those, like for any failure), and 128 + the signal's number for a job or sweep ended by SIGTERM or
     SIGINT (a sweep's parent passes the signal to its running jobs, which record it)."""
     tolerant_streams()
+    sys.argv[1:] = quoted_overrides(sys.argv[1:])  # Hydra reads sys.argv: a path outside ASCII, quoted
     previous = {s: signal.getsignal(s) for s in SIGNALS}
     for s in SIGNALS:
         signal.signal(s, stop_sweep)

@@ -10,6 +10,20 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
+# errors= of a text file a command writes: under an ASCII locale a path outside ASCII comes from the command line
+# and the file system as lone surrogates; they are written back as the path's own bytes (UTF-8 where it was)
+ESCAPED = "surrogateescape"
+
+
+def readable(text: str) -> str:
+    """``text`` as a table or figure shows it: lone surrogates (an ASCII locale's bytes outside ASCII) read as the
+    UTF-8 they were, any other undecodable byte as U+FFFD; a figure's fonts cannot draw a surrogate."""
+    try:
+        raw = text.encode("utf-8", ESCAPED)
+    except UnicodeEncodeError:  # a surrogate no byte gave (written as \ud800 in a JSON file)
+        raw = text.encode("utf-8", "replace")
+    return raw.decode("utf-8", "replace")
+
 
 def write_atomic(path: str | os.PathLike, write: Callable[[Path], object]) -> None:
     """``write(tmp)`` fills a temporary file beside ``path``, which then replaces ``path`` in one rename.

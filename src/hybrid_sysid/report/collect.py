@@ -16,6 +16,7 @@ from pathlib import Path
 import pandas as pd
 
 from hybrid_sysid.core.checks import bad
+from hybrid_sysid.core.files import readable
 from hybrid_sysid.model.metrics import PARAMETERS, relative_deviation
 from hybrid_sysid.runs.layout import PREDICTIONS, RECORD
 from hybrid_sysid.runs.rundir import DamagedFile, RunDir
@@ -89,7 +90,7 @@ def find_runs(paths) -> list[Path]:
 def _overrides(items) -> dict[str, str]:
     out = {}
     for item in items if isinstance(items, list) else []:
-        key, _, value = str(item).partition("=")
+        key, _, value = readable(str(item)).partition("=")  # a path outside ASCII, as its table and figures show it
         out[key.lstrip("+")] = value  # "+key=v" / "++key=v" set the same key as "key=v"
     return out
 

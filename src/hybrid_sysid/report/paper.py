@@ -18,7 +18,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.core.files import write_atomic
+from hybrid_sysid.core.files import ESCAPED, write_atomic
 from hybrid_sysid.report.collect import load_runs, natural_key, row_keys, run_choices
 from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.protocol import protocol
@@ -221,5 +221,5 @@ def write_reproduction(out_dir, paths=None) -> str:
     out_dir = Path(out_dir)
     text = reproduction_markdown(out_dir if paths is None else paths)
     out_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic(out_dir / "reproduction.md", lambda p: p.write_text(text, encoding="utf-8"))
+    write_atomic(out_dir / "reproduction.md", lambda p: p.write_text(text, encoding="utf-8", errors=ESCAPED))
     return text

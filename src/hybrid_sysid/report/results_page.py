@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.core.files import write_atomic
+from hybrid_sysid.core.files import ESCAPED, write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.extras import extras_of
@@ -115,10 +115,12 @@ def write_results(
         for slug, title, _, lines in pages:
             back = f"[Results](index.md) of `{command.split()[0]}`; cells as the index says."
             page = "\n".join([f"# Results: {title}", "", back, "", *lines]).rstrip("\n") + "\n"
-            write_atomic(folder / f"{slug}.md", lambda p, page=page: p.write_text(page, encoding="utf-8"))
+            write_atomic(
+                folder / f"{slug}.md", lambda p, page=page: p.write_text(page, encoding="utf-8", errors=ESCAPED)
+            )
         text = "\n".join(_index(header, pages, notes, folder))
     text = text.rstrip("\n") + "\n"
-    write_atomic(out if one_page else folder / INDEX, lambda p: p.write_text(text, encoding="utf-8"))
+    write_atomic(out if one_page else folder / INDEX, lambda p: p.write_text(text, encoding="utf-8", errors=ESCAPED))
     return text, len(status), sum(s != "completed" for s in status.values())
 
 

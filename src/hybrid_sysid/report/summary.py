@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.core.files import write_atomic
+from hybrid_sysid.core.files import ESCAPED, write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
 from hybrid_sysid.report.extras import extras_of
@@ -136,13 +136,15 @@ def write_summary(
         *(failed_lines(df) or ["None."]),
     ]
     sweep_dir.mkdir(parents=True, exist_ok=True)
-    write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False))
-    write_atomic(sweep_dir / "summary.md", lambda p: p.write_text("\n".join(md) + "\n", encoding="utf-8"))
+    write_atomic(sweep_dir / "summary.csv", lambda p: df.to_csv(p, index=False, errors=ESCAPED))
+    write_atomic(
+        sweep_dir / "summary.md", lambda p: p.write_text("\n".join(md) + "\n", encoding="utf-8", errors=ESCAPED)
+    )
     if latex:
         caption = f"{METRICS[metric]} on the {split} split [%], mean ± std over seeds"
         write_atomic(
             sweep_dir / "summary.tex",
-            lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8"),
+            lambda p: p.write_text(to_latex(table, compare=compare, caption=caption), encoding="utf-8", errors=ESCAPED),
         )
     if on_table is not None:
         on_table(df, table)
@@ -150,7 +152,10 @@ def write_summary(
     for extra in extras_of(table):  # what the experiment adds (report.extras)
         text = extra.markdown([sweep_dir] if paths is None else list(paths)) if extra.markdown else ""
         if text:
-            write_atomic(sweep_dir / f"{extra.row_key}.md", lambda p, text=text: p.write_text(text, encoding="utf-8"))
+            write_atomic(
+                sweep_dir / f"{extra.row_key}.md",
+                lambda p, text=text: p.write_text(text, encoding="utf-8", errors=ESCAPED),
+            )
             sections.append(text)
     if figures:
         out = sweep_dir / FIGURES
