@@ -80,6 +80,14 @@ class PaperCNN(nn.Module):
         return self.net(signals).abs() * self.p_scale
 
 
+def checked_layers(n_layers) -> int:
+    """n_layers, checked before 2^n_layers is computed: 10^30 layers would hold the process in that power."""
+    n_layers = check_int("n_layers", n_layers, 1)
+    if n_layers > LAYERS_MAX:
+        bad("n_layers", n_layers, f"must lie in [1, {LAYERS_MAX}] (each layer halves the window)")
+    return n_layers
+
+
 class FastCNN(nn.Module):
     """A compact 1D CNN: n_layers x [Conv1d stride 2, BatchNorm, ReLU], global average pooling, linear head.
 
@@ -118,7 +126,7 @@ class FastCNN(nn.Module):
     ):
         super().__init__()
         channels = check_int("channels", channels, 1)
-        n_layers = FastCNN._layers(n_layers)
+        n_layers = checked_layers(n_layers)
         kernel_size = check_int("kernel_size", kernel_size, 1)
         if kernel_size % 2 == 0:
             bad("kernel_size", kernel_size, "an odd integer (for 'same' padding)")
@@ -152,15 +160,7 @@ class FastCNN(nn.Module):
     @staticmethod
     def window_bounds(n_layers: int = 4, **arguments) -> tuple[int, None]:
         """Any window of at least 2^n_layers steps: each layer halves the sequence, which must keep a sample."""
-        return 2 ** FastCNN._layers(n_layers), None
-
-    @staticmethod
-    def _layers(n_layers) -> int:
-        """n_layers, checked before 2^n_layers is computed: 10^30 layers would hold the process in that power."""
-        n_layers = check_int("n_layers", n_layers, 1)
-        if n_layers > LAYERS_MAX:
-            bad("n_layers", n_layers, f"must lie in [1, {LAYERS_MAX}] (each layer halves the window)")
-        return n_layers
+        return 2 ** checked_layers(n_layers), None
 
     def output_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The head's range: the prior widened by ``margin`` (its buffers, so a loaded network's own)."""
