@@ -396,6 +396,30 @@ def test_a_full_disk_ends_with_a_record_or_one_line(full_disk):
     assert not left
 
 
+@started_early
+def evaluations_onto_a_full_disk(tmp, env, tiny_run, tiny_cache):
+    """Real processes: hybrid-sysid-eval onto a tmpfs too small for it. At 8 KiB Hydra cannot write the .hydra/
+    files (before the job); at the larger sizes the job's own files meet the full disk. What the test asserts on:
+    per size, the exit status, stderr and what is left on the filesystem."""
+    ended = {}
+    for size in ("8k", "20k", "28k"):
+        with small_tmpfs(tmp / f"small_{size}", size) as mnt:
+            cli = [f"run={tiny_run}", f"hydra.run.dir={mnt / 'eval'}"]
+            proc = app_process.run_app(tmp, *cli, cache=tiny_cache, env=env, module="hybrid_sysid.cli.evaluate")
+            ended[size] = proc.returncode, proc.stderr, sorted(p.name for p in mnt.rglob("*"))
+    return ended
+
+
+def test_an_evaluation_onto_a_full_disk_is_one_line_and_leaves_no_directory(evaluations_onto_a_full_disk):
+    ended = evaluations_onto_a_full_disk
+    for size, (_, err, left) in ended.items():
+        assert err.count("\n") == 1 and err.startswith("error: ") and "No space left" in err, (size, err)
+        assert not left, (size, left)  # neither the evaluation's directory nor a half-written file in it
+    # before the job (Hydra's .hydra/): an OS error before any job; during it: a failure of the work
+    assert ended["8k"][0] == 2
+    assert {code for code, _, _ in ended.values()} == {1, 2}
+
+
 def refused(proc, *words):
     assert proc.returncode == 2, proc.stderr[-2000:]
     last = proc.stderr.strip().splitlines()[-1]

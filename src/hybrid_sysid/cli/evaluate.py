@@ -12,6 +12,7 @@ refuses a directory that holds a completed run of other overrides before Hydra w
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 from pathlib import Path
@@ -24,7 +25,7 @@ from omegaconf.errors import OmegaConfBaseException
 
 from hybrid_sysid import config
 from hybrid_sysid.cli.job import Preflight, checks_complete, draws_figures, run_job
-from hybrid_sysid.cli.process import console_main
+from hybrid_sysid.cli.process import console_main, fail
 from hybrid_sysid.config import Config, flatten, validate
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.options import EVAL_OVERRIDABLE
@@ -34,6 +35,10 @@ log = logging.getLogger("hybrid_sysid")
 # keys an evaluation may change; anything else the run trained with stays
 OVERRIDABLE = EVAL_OVERRIDABLE
 LAUNCHER_KEYS = ("trainer.threads", "trainer.progress_bar")  # what a launcher group sets for its workers
+FULL_DISK = (errno.ENOSPC, errno.EDQUOT)
+# the directory a single evaluation made for itself (EvalPreflight): removed again if the command ends without
+# its record, since an evaluation that cannot be written leaves nothing to resume from (see main)
+MADE: list[Path] = []
 
 
 def override_keys(overrides) -> list[str]:
@@ -122,6 +127,9 @@ class EvalPreflight(Preflight):
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         with checks_complete():  # a refusal here ends the command in one line, before any directory
             outside_other_runs(config.hydra.run.dir, "hydra.run.dir")
+        out_dir = Path(str(config.hydra.run.dir))
+        if not out_dir.exists():  # made by the preflight below: this command's to remove (main)
+            MADE.append(out_dir)
         super().on_run_start(config, **kwargs)
 
     def on_multirun_start(self, config: DictConfig, **kwargs) -> None:
@@ -153,9 +161,22 @@ def evaluate(composed: DictConfig, out_dir: Path, overrides: list[str], checked:
         done = RunDir(out_dir).previous_record(overrides)  # one of other overrides is refused
         log.info("run %s already completed; not running it again", out_dir)
         return done
-    out_dir.mkdir(parents=True, exist_ok=True)
-    RunDir(out_dir).write_config(cfg, overrides)
-    return evaluate_checkpoint(cfg, source, out_dir, overrides, checked=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+        RunDir(out_dir).write_config(cfg, overrides)
+        return evaluate_checkpoint(cfg, source, out_dir, overrides, checked=True)
+    except OSError as exc:
+        if exc.errno not in FULL_DISK or not checked:  # a sweep's job: run_job records it, the sweep goes on
+            raise
+        # a full disk: the failure's record seldom fits (run_job would then print a second line), and a directory
+        # of half-written files is no evaluation; so one line, and a directory made here is removed
+        error = f"{type(exc).__name__}: {exc}"
+        if out_dir in MADE and RunDir(out_dir).discard():
+            fail(f"{error}: the evaluation cannot be written in {out_dir}; the directory is removed", status=1)
+        # a directory of before (an interrupted evaluation): its files stay, and the failure is recorded if it fits
+        if RunDir(out_dir).try_record_end(overrides, composed.get("seed", 0), "failed", error) is not None:
+            fail(f"{error}: the evaluation cannot be written in {out_dir}, nor its failure recorded", status=1)
+        raise
 
 
 @hydra.main(version_base="1.3", config_path=config.CONF_DIR, config_name="eval")
@@ -190,8 +211,28 @@ def draw_figures(out_dir: Path) -> None:
 
 def main() -> None:
     """Console script ``hybrid-sysid-eval`` (exit statuses: hybrid_sysid.cli.process)."""
-    console_main(hydra_main, sys.argv[1:])
+    try:
+        console_main(hydra_main, sys.argv[1:])
+    finally:
+        discard_unrecorded()
+
+
+def discard_unrecorded() -> None:
+    """Remove the directory this command made if it holds no record when the command ends: Hydra could not write
+    its .hydra/ there (a full disk, before the job), or the record itself did not fit. A record, failed or
+    interrupted, stays: it says what happened. Only while this process still holds the directory's lock."""
+    from hybrid_sysid.runs import locks
+
+    while MADE:
+        out_dir = MADE.pop()
+        if locks.holds(out_dir) and not RunDir(out_dir).record_file.exists():
+            RunDir(out_dir).discard()
+            locks.release(out_dir)
 
 
 if __name__ == "__main__":
-    main()
+    # python -m: this file runs as __main__, while Hydra builds the preflight from hybrid_sysid.cli.evaluate, a
+    # second copy; that copy's main runs, so the directory the preflight notes in MADE is the one main removes
+    from hybrid_sysid.cli.evaluate import main as module_main
+
+    module_main()

@@ -12,6 +12,8 @@ reads them as runs.
 from __future__ import annotations
 
 import logging
+import os
+import shutil
 import sys
 from pathlib import Path
 
@@ -263,16 +265,35 @@ class RunDir:
     def record_end(self, overrides, seed, status: str, error: str) -> dict:
         """Record a failed or interrupted job, unless the directory holds a completed run (never replaced). A
         record that cannot be written (a full disk) is reported on one line instead."""
+        problem = self.try_record_end(overrides, seed, status, error)
+        if problem is not None:
+            print(f"error: could not record the {status} job in {self.path}: {problem}", file=sys.stderr)
+        return {"status": status, "error": error}
+
+    def try_record_end(self, overrides, seed, status: str, error: str) -> str | None:
+        """``record_end`` without its line: what kept the record from being written (a full disk), else None."""
         if self.completed_record() is None:
             try:
                 self.path.mkdir(parents=True, exist_ok=True)
                 self.write_record(run_record(status, overrides, seed, error=error))
             except (OSError, CompletedRecordError) as exc:
-                print(
-                    f"error: could not record the {status} job in {self.path}: {type(exc).__name__}: {exc}",
-                    file=sys.stderr,
-                )
-        return {"status": status, "error": error}
+                return f"{type(exc).__name__}: {exc}"
+        return None
+
+    def discard(self) -> bool:
+        """Remove the directory and everything in it, unless it holds a completed record (a run is final once
+        done); whether it is gone. For a directory this process made for a job that left nothing of use: an
+        evaluation onto a full disk, whose half-written files no command could read as a run."""
+        if self.completed_record() is not None:
+            return False
+        # the job's log file lies inside: closed first, so no later message is written into a removed file
+        here = os.path.abspath(self.path)
+        for handler in logging.getLogger().handlers[:]:
+            if isinstance(handler, logging.FileHandler) and os.path.dirname(handler.baseFilename) == here:
+                logging.getLogger().removeHandler(handler)
+                handler.close()
+        shutil.rmtree(self.path, ignore_errors=True)
+        return not self.path.exists()
 
     def _damaged(self, key: str, name: str, why, verb: str = "is damaged") -> None:
         if isinstance(why, BaseException):
