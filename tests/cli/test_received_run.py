@@ -188,3 +188,31 @@ def test_a_run_and_its_report_in_a_non_ascii_directory_under_an_ascii_locale(tmp
     (run,) = (where / "outputs" / "runs").glob("*/metrics.json")
     assert "lauf_ü".encode() in (run.parent / "train.log").read_bytes()
     assert (where / "outputs" / "runs" / "summary.md").is_file()
+
+
+@pytest.mark.parametrize(
+    "line, replaced, key",
+    [
+        ("  train_std: 0.0", "  train_std: 1.0e+300", "noise.train_std"),
+        ("  threads: null", "  threads: 1000000000000000000000000000000", "trainer.threads"),
+        ("    n_layers: 4", "    n_layers: abc", "model.net.n_layers"),
+        ("  seat_hardening: 0.0", "  seat_hardening: .inf", "car.seat_hardening"),
+        ("    lr: 0.02", "    lr: 1.0e+300", "model.optim.lr"),
+        ("  window: 200", "  window: -1", "data.window"),
+        ("  c2: 4741.0", "  c2: 1.0e+300", "car.c2"),
+        ("  extra: {}", "  extra: {max_epochs: -5}", "trainer.extra"),
+    ],
+)
+def test_hostile_values_in_a_received_config_stop_the_eval_command_in_one_line(
+    tiny_run, tmp_path, cli_in_process, line, replaced, key
+):
+    """hybrid-sysid-eval of a received run whose saved config holds a hostile value: one line naming the key,
+    exit 2, nothing written (neither in the run nor where the evaluation would go)."""
+    from hybrid_sysid.cli.evaluate import main
+
+    run = received(tiny_run, tmp_path, line, replaced)
+    before = snapshot(tmp_path)
+    code, out, err = cli_in_process(main, f"run={run}", f"hydra.run.dir={tmp_path / 'ev'}", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert err.startswith("error: ") and key in err, err
+    assert snapshot(tmp_path) == before

@@ -201,3 +201,31 @@ def test_a_plugin_whose_import_raises_stops_the_command_in_one_line_writing_noth
     assert len(lines) == 1 and lines[0].startswith("error: objective._target_ = 'broken_obj.Objective'"), err
     assert "hybrid_sysid.objectives:broken of broken-plugin" in lines[0] and "needs mylab-extras" in lines[0]
     assert list((tmp_path / "work").iterdir()) == [] and not (tmp_path / "c").exists()
+
+
+@pytest.mark.parametrize(
+    "member, shown",
+    [
+        ("fir = 42", "objective.fir = 42 is not allowed: None, or the band-pass's taps"),
+        ("fir = 'abc'", "objective.fir = 'abc' is not allowed: None, or the band-pass's taps"),
+        ("outside_fir = [float('nan')]", "objective.outside_fir = [nan] is not allowed"),
+        ("uses_labels = 'yes'", "objective.uses_labels = 'yes' is not allowed: True or False"),
+        ("monitor = 'val/bogus'", "objective.monitor = 'val/bogus' is not allowed: one of"),
+    ],
+)
+def test_a_plugin_objectives_member_of_the_wrong_type_is_one_line_naming_it(
+    install, cli_in_process, tmp_path, member, shown
+):
+    """The command with a plugin objective whose member has the wrong value: one line naming the member's key,
+    exit 2, nothing made (a fir of 42 once failed deep in the data module)."""
+    from hybrid_sysid.cli.train import main
+
+    source = OBJECTIVE.replace('    monitor = "val/rel_dev"\n', f'    monitor = "val/rel_dev"\n    {member}\n', 1)
+    assert member in source
+    install("abs-objective", {"abs_obj": source}, {"hybrid_sysid.objectives": {"abs": "abs_obj:AbsObjective"}})
+    args = ["data=tiny", "trainer=debug", "trainer.max_steps=2", "hydra.run.dir=run"]
+    args += ["objective._target_=abs_obj.AbsObjective", "~objective.p_scale"]
+    code, out, err = cli_in_process(main, *args, cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert err.startswith(f"error: {shown}"), err
+    assert not (tmp_path / "run").exists() and not (tmp_path / "outputs").exists()
