@@ -19,15 +19,17 @@ band-passed least squares with the same fix (baselines.fixes).
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 
 import numpy as np
 
 from hybrid_sysid.baselines.fixes import fit_fixed
-from hybrid_sysid.core.checks import bad, check_choice, check_number
+from hybrid_sysid.core.checks import ConfigError, bad, check_choice, check_number
 from hybrid_sysid.core.options import FIXES
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.eiv import P_HI, P_LO, eiv_model, fit_eiv, log_p_prior
+from hybrid_sysid.physics.eiv.fit import skew_samples
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 from hybrid_sysid.physics.seat_fit import fit_windows
 
@@ -80,21 +82,39 @@ class ErrorsInVariablesFit:
         check_bandpass(low_hz, high_hz, taps, dt)
         self.dt, self.taps = float(dt), int(taps)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt)
+        if prior is not None and not isinstance(prior, Mapping):
+            bad("prior", prior, f"null, or a dict with {', '.join(PRIOR_KEYS)}")
         self.prior_settings = None if prior is None else dict(prior)
         self.prior = None
         if prior is not None:
             missing = [k for k in PRIOR_KEYS if k not in prior]
             if missing:
                 bad("prior", dict(prior), f"a dict with {', '.join(PRIOR_KEYS)} (missing {', '.join(missing)})")
-            mean, cov = log_p_prior(*(prior[k] for k in PRIOR_KEYS))
+            # a key the prior does not read would be ignored in silence (a misspelt seat_spread: no spread)
+            for k in prior:
+                if k not in PRIOR_KEYS:
+                    bad(f"prior.{k}", prior[k], f"not a key of the prior, which takes {', '.join(PRIOR_KEYS)}")
+            try:
+                mean, cov = log_p_prior(*(prior[k] for k in PRIOR_KEYS))
+            except ConfigError as exc:  # log_p_prior names its own arguments: under prior, as the config has them
+                raise exc.under("prior") from None
             # without a spread of the seat's constants (the paper's data) p1 / p2 = C3 / K3 is fixed and the prior's
             # covariance singular: a floor of 1e-4 on its standard deviations keeps that constraint, as a prior
             self.prior = (mean, cov + PRIOR_FLOOR**2 * np.eye(2))
         self.fit_seconds = 0.0
 
     def check_lengths(self, window: int, n_steps: int) -> None:
-        """The least-squares start's band-pass must leave enough samples of a window."""
+        """The least-squares start's band-pass must leave enough samples of a window, and the skew fix's edges too
+        (the fit would refuse each window only once the data are simulated)."""
         check_filter_fits(self.taps, window, "taps", "data.window")
+        if self.fix == "skew":
+            need = max(skew_samples(model, self.dt, self.skew_max) for model in ("discrete", "continuous"))
+            if window < need:
+                bad(
+                    "skew_max",
+                    self.skew_max,
+                    f"a skew whose fix fits in data.window = {window} samples ({need} needed)",
+                )
 
     def fit_windows(
         self, seat, body, dt: float, measurement: str, guarded: bool = False

@@ -69,6 +69,7 @@ def validate(cfg: DictConfig, training: bool = True) -> None:
         if key not in CAR_FIELDS:
             bad(f"car.{key}", value, f"unknown; the car's constants are {', '.join(CAR_FIELDS)}")
     _check_task(cfg)
+    _check_steps(cfg)
     figures = cfg.get("run_figures", "auto")
     if not (isinstance(figures, bool) or figures == "auto"):
         bad("run_figures", figures, "true, false or auto (a single run's figures, not a sweep job's)")
@@ -121,6 +122,16 @@ def _check_noise(cfg: DictConfig) -> None:
     if curve_std is not None and not (curve_std and all(0 <= s <= NOISE_MAX for s in curve_std)):
         allowed = f"a list of standard deviations >= 0 and <= {NOISE_MAX:g} (at least one), or null for eval_std's"
         bad("noise.curve_std", list(curve_std), allowed)
+
+
+def _check_steps(cfg: DictConfig) -> None:
+    """A network's, objective's or baseline's ``dt`` (``${data.dt}`` in every preset) is the recordings' step: any
+    other would read them at a step they were not sampled at (model.net.dt=0.01 on 0.005 s data: 50% off)."""
+    for section in ("model.net", "objective", "baseline"):
+        node = OmegaConf.select(cfg, section)
+        step = node.get("dt") if isinstance(node, DictConfig) else None
+        if step is not None and step != cfg.data.dt:
+            bad(f"{section}.dt", step, f"the recordings' step, data.dt = {cfg.data.dt} (${{data.dt}})")
 
 
 def _check_task(cfg: DictConfig) -> None:

@@ -107,7 +107,8 @@ class AnchoredCNN(FastCNN):
         self.map = None
         if prior is not None:
             extra = {} if fix == "none" else {"fix": fix}
-            self.map = ErrorsInVariablesFit(noise_ratio=1.0, prior=dict(prior), dt=self.dt, **band, **extra)
+            # the fit checks the prior (a dict of its keys), and names its errors under model.net.prior
+            self.map = ErrorsInVariablesFit(noise_ratio=1.0, prior=prior, dt=self.dt, **band, **extra)
         if not isinstance(trunk, bool):
             bad("trunk", trunk, "true or false")
         self.trunk = trunk

@@ -33,7 +33,7 @@ from hybrid_sysid.physics.eiv.criterion import evaluate_criterion
 from hybrid_sysid.physics.eiv.fault_criterion import SKEW_HALF_WIDTH
 from hybrid_sysid.physics.eiv.faults import GAIN_BOX, fault_problem
 from hybrid_sysid.physics.eiv.matrices import inverse_diagonal, positive
-from hybrid_sysid.physics.eiv.model import CHUNK, error_spectra, frequency_grid, setup_windows
+from hybrid_sysid.physics.eiv.model import CHUNK, error_spectra, frequency_grid, setup_windows, transfer_polynomials
 from hybrid_sysid.physics.eiv.newton import MAX_ITER, TOL, minimise
 
 P_LO = (0.5, 25.0)  # the default box of (p1, p2): wide around the seats' 2..40 1/s and 100..1500 1/s^2
@@ -63,6 +63,18 @@ def _box(p_lo, p_hi):
     if not (lo.shape == hi.shape == (2,) and np.isfinite(lo).all() and np.isfinite(hi).all() and (lo < hi).all()):
         bad("p_lo", f"{p_lo} .. {p_hi}", "two finite values > 0 (p1, p2) each, p_lo < p_hi")
     return lo, hi
+
+
+def skew_edges(skew_max: float, dt: float) -> tuple[int, int]:
+    """The skew fix's lead and lag samples at a window's ends: the advance's reach and its sinc's half width."""
+    reach = skew_max / dt
+    return int(np.floor(reach)) + SKEW_HALF_WIDTH + 1, int(np.ceil(reach)) + SKEW_HALF_WIDTH
+
+
+def skew_samples(model: str, dt: float, skew_max: float) -> int:
+    """The fewest samples a window needs for the skew fix: the transient's basis widened by its edges, plus 4."""
+    lead, lag = skew_edges(skew_max, dt)
+    return lead + lag + transfer_polynomials(model, dt).shape[1] - 1 + 4
 
 
 def fit_eiv(
@@ -104,9 +116,7 @@ def fit_eiv(
     n, N = seat.shape
     lam = float(noise_ratio)
     if fix == "skew":  # the advance's circular edges: lead and lag samples at the window's ends (physics.eiv.faults)
-        reach = skew_max / dt
-        lead = int(np.floor(reach)) + SKEW_HALF_WIDTH + 1
-        lag = int(np.ceil(reach)) + SKEW_HALF_WIDTH
+        lead, lag = skew_edges(skew_max, dt)
         grid = frequency_grid(model, float(dt), N, lead, lag)
         if N < grid.basis.shape[1] + 4:
             bad("seat", f"windows of {N} samples", f"at least {grid.basis.shape[1] + 4} samples for the skew fix")
