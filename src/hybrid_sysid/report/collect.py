@@ -95,6 +95,16 @@ def _overrides(items) -> dict[str, str]:
     return out
 
 
+BOUND_MAX = 1e6  # a relative deviation of 1e8 %: far above any window's bound (116% at noise 0.1), and x 100 finite
+
+
+def _bound(value):
+    """A Cramér-Rao column of a results row: a number in [0, BOUND_MAX], else unknown (None). A record edited to
+    a negative, infinite, huge or text bound made the table's bound row read -12.50% or inf."""
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value <= BOUND_MAX
+    return value if ok else None
+
+
 def _rows_of(run_dir: Path, name: str) -> list[dict]:
     run = RunDir(run_dir)
     try:
@@ -114,7 +124,7 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
         }
         overrides = _overrides(rec.get("overrides"))
         results = [
-            {**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1), **{k: r.get(k) for k in BOUND}}
+            {**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1), **{k: _bound(r.get(k)) for k in BOUND}}
             for r in rec.get("results") or []
         ]
         for r in results:  # a deviation that is no number >= 0 (text, a negative) is no measurement
