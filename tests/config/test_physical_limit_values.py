@@ -40,3 +40,14 @@ def test_a_bad_value_of_the_fits_is_named_under_its_own_key(make_cfg, overrides,
 )
 def test_the_presets_and_the_data_step_pass(make_cfg, overrides):
     validate(make_cfg(*TINY, *overrides))
+
+
+def test_a_band_pass_of_a_billion_taps_is_refused_before_it_is_built():
+    """baseline.taps (and every filter's taps) of 10^9 asked for 7.45 GiB while the baseline was built, before
+    the window's check: a received run's config got hybrid-sysid-predict killed by the kernel."""
+    from hybrid_sysid.physics.filters import MAX_TAPS, bandpass_taps, check_bandpass
+
+    with pytest.raises(ConfigError) as err:
+        check_bandpass(4.0, 20.0, 1_000_000_001, 0.005)
+    assert err.value.key == "taps" and f"<= {MAX_TAPS}" in str(err.value)
+    assert len(bandpass_taps(4.0, 20.0, MAX_TAPS, 0.005)) == MAX_TAPS

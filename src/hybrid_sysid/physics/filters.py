@@ -21,6 +21,8 @@ import numpy as np
 from hybrid_sysid.core.checks import ConfigError, bad, check_positive
 from hybrid_sysid.core.options import FILTER_KEYS
 
+MAX_TAPS = 100_001  # 500 s at dt = 0.005 s, 800 kB a filter: longer than any window a recording would give
+
 
 def check_bandpass(low_hz, high_hz, taps, dt) -> None:
     """ConfigError naming the argument, the value and what is allowed."""
@@ -28,6 +30,8 @@ def check_bandpass(low_hz, high_hz, taps, dt) -> None:
     nyquist = 0.5 / dt
     if not isinstance(taps, numbers.Integral) or isinstance(taps, bool) or taps < 3 or taps % 2 == 0:
         bad("taps", taps, "must be an odd integer >= 3 (a symmetric, zero-phase FIR)")
+    if taps > MAX_TAPS:  # checked before the filter is built: 10^9 taps asked for gigabytes, and the kernel's kill
+        bad("taps", taps, f"must be <= {MAX_TAPS} (a band-pass no longer than a window can be)")
     if not isinstance(low_hz, numbers.Real) or not 0 < low_hz < nyquist:
         bad("low_hz", low_hz, f"must lie in (0, Nyquist = {nyquist:g} Hz)")
     if not isinstance(high_hz, numbers.Real) or not low_hz < high_hz < nyquist:
