@@ -39,8 +39,7 @@ class CrossSegmentObjective(nn.Module):
     defined (NaN) gets weight 0. Model selection: the same loss on the validation windows (``val/loss``).
     ``weighted``: False gives every defined row weight 1. The L1 loss makes the network the conditional median of
     the targets given the window, and weights that follow the target's se (which depends on p, the road and the
-    noise) tilt that median towards the p whose outside fits are precise: measured on data=default at noise 0.1,
-    p1 missed by 23% weighted against 18% unweighted (docs/label_free.md).
+    noise) tilt that median towards the p whose outside fits are precise (docs/label_free.md measures it).
     """
 
     uses_labels = False
