@@ -64,14 +64,15 @@ def table_rows(text: str) -> dict[tuple, list[str]]:
     rows = {}
     for line in text.splitlines():
         cells = [c.strip() for c in line.strip("|").split("|")]
-        if len(cells) == 10 and cells[0] in ("clean", "gain"):
+        if len(cells) == 11 and cells[0] in ("clean", "gain"):
             rows[(cells[0], float(cells[1]), cells[2])] = cells[3:]
     return rows
 
 
 def test_each_goal_reads_its_ratio_interval_and_verdict(tmp_path):
     rows = table_rows(targets_markdown([make_sweep(tmp_path / "sweep")]))
-    value, reference, ref_value, ratio, goal, met, p = rows[("clean", 0.003, "p1")]
+    value, reference, ref_value, ratio, goal, met, p, pairs = rows[("clean", 0.003, "p1")]
+    assert pairs == str(2 * N)  # two seeds' recordings
     assert (reference, goal, met) == ("eiv", "<= 1.03x", "yes")
     assert ratio == "1.020 [1.020, 1.020]"  # every pair is exactly 1.02x
     a = np.concatenate([1.02 * base_devs(s) for s in (0, 1)])
@@ -104,3 +105,12 @@ def test_no_table_without_a_label_free_anchored_run(tmp_path):
     root = tmp_path / "sweep"
     make_run(root / "0", ["experiment=anchored", "estimator=ls", "seed=0"], 0)
     assert targets_markdown([root]) == ""
+
+
+def test_a_job_copied_under_another_number_counts_once(tmp_path):
+    import shutil
+
+    sweep = make_sweep(tmp_path / "sweep")
+    before = table_rows(targets_markdown([sweep]))
+    shutil.copytree(sweep / "3_0", sweep / "9_0")  # anchored_cross_segment, clean, seed 0, again
+    assert table_rows(targets_markdown([sweep])) == before

@@ -91,12 +91,26 @@ def target_rows(devs: pd.DataFrame, candidate: str) -> list[list[str]]:
     return [r for r in rows if r is not None]
 
 
+def _rows_of(here, estimator):
+    """An estimator's rows of a cell."""
+    return here[here.estimator == estimator]
+
+
 def _row(fault, goal: Goal, param, candidate, value, here) -> list[str] | None:
     pct = lambda v: f"{100 * v:.2f}"  # noqa: E731
     head = [fault, f"{goal.noise:g}", param, pct(value)]
     if goal.reference is None:
         met = value <= goal.limit
-        return [*head, "-", "-", "-", f"<= {pct(goal.limit)}%", "yes" if met else "**no**", "-"]
+        return [
+            *head,
+            "-",
+            "-",
+            "-",
+            f"<= {pct(goal.limit)}%",
+            "yes" if met else "**no**",
+            "-",
+            str(len(_rows_of(here, candidate))),
+        ]
     reference = goal.reference
     if reference == "best classical":
         means = {e: here[here.estimator == e].rel_dev.mean() for e in CLASSICAL if (here.estimator == e).any()}
@@ -108,7 +122,7 @@ def _row(fault, goal: Goal, param, candidate, value, here) -> list[str] | None:
         return None
     if goal.noise == 0 and b.mean() <= EXACT:  # where the fixed fit is exact, so must the candidate be
         met = a.mean() <= EXACT
-        return [*head, reference, pct(b.mean()), "-", f"<= {pct(EXACT)}%", "yes" if met else "**no**", "-"]
+        return [*head, reference, pct(b.mean()), "-", f"<= {pct(EXACT)}%", "yes" if met else "**no**", "-", str(len(a))]
     ratio = a.mean() / b.mean() if b.mean() > 0 else float("inf")
     low, high = ratio_interval(a, b)
     met = ratio < goal.factor if goal.strict else ratio <= goal.factor
@@ -121,6 +135,7 @@ def _row(fault, goal: Goal, param, candidate, value, here) -> list[str] | None:
         f"{sign} {goal.factor:g}x",
         "yes" if met else "**no**",
         f"{wilcoxon_p(a, b):.2g}",
+        str(len(a)),
     ]
 
 
@@ -136,15 +151,18 @@ def targets_markdown(paths) -> str:
     for key in ("estimator", "fault", "seed"):
         default = "clean" if key == "fault" else ""
         devs[key] = devs.run.map(runs[key]) if key in runs else default
+    # a job copied under another number, or a row repeated, is one recording: the value and the pairs count it once
+    devs = devs.drop_duplicates(["estimator", "fault", "seed", "noise_std", "parameter", "recording"])
     tables = {c: target_rows(devs, c) for c in CANDIDATES if (devs.estimator == c).any()}
     tables = {c: rows for c, rows in tables.items() if rows}
     if not tables:
         return ""
     header = ["fault", "noise", "parameter", "value [%]", "reference", "its value [%]",
-              f"ratio [{CONFIDENCE:.0%} interval]", "goal", "met", "Wilcoxon p"]  # fmt: skip
+              f"ratio [{CONFIDENCE:.0%} interval]", "goal", "met", "Wilcoxon p", "recordings"]  # fmt: skip
     text = (
         "Targets of the label-free anchored estimators (K = 1; the mean over seeds and recordings; the ratio's "
-        "interval a paired bootstrap over recordings; p the Wilcoxon signed-rank test of the pairs).\n\n"
+        "interval a paired bootstrap over recordings; p the Wilcoxon signed-rank test of the pairs; recordings: the "
+        "pairs, or the candidate's recordings, over all seeds).\n\n"
     )
     for c, rows in tables.items():
         text += f"`estimator={c}`\n\n" + markdown_table(header, rows, n_left=3) + "\n\n"
