@@ -431,7 +431,7 @@ def refused(proc, *words):
 @pytest.mark.parametrize(
     "args, words",
     [
-        (["experiment=robustnes"], ["Could not find 'experiment/robustnes'"]),
+        (["experiment=robustnes"], ["experiment = 'robustnes' is not allowed: one of", "robustness"]),
         (["+data.n_road=3"], ["data.n_road", "unknown key"]),
         (["resume=no/such/dir"], ["resume", "no such directory"]),
         (["hydra.run.dir=a_file/run"], ["hydra.run.dir", "cannot be created"]),

@@ -118,8 +118,8 @@ def test_a_linear_spring_keeps_the_cache_key_and_0_is_allowed():
 @pytest.mark.parametrize(
     "spec, words",
     [
-        (DatasetSpec(car=QuarterCar(seat_hardening=-1.0)), ">= 0"),
-        (DatasetSpec(car=QuarterCar(seat_hardening=float("inf"))), ">= 0"),
+        (DatasetSpec(car=QuarterCar(seat_hardening=-1.0)), "must lie in [0, "),
+        (DatasetSpec(car=QuarterCar(seat_hardening=float("inf"))), "must lie in [0, "),
         (DatasetSpec(measurement="continuous", car=QuarterCar(seat_hardening=1e4)), "continuous"),
     ],
 )

@@ -96,13 +96,24 @@ def test_k_windows_add_test_rows_and_leave_the_k1_rows_unchanged(make_cfg, tmp_p
     assert (tmp_path / "k" / "figures" / "test_predictions.png").stat().st_size > 10_000
 
 
-def test_a_nan_loss_stops_the_run_and_records_why(tmp_path, tiny_cache, cli_in_process):
-    # the command's main() in this process: the app records the failure of its job and exits non-zero
+def test_a_nan_loss_stops_the_run_and_records_why(tmp_path, tiny_cache, cli_in_process, monkeypatch):
+    # the command's main() in this process: the app records the failure of its job and exits non-zero. No allowed
+    # value makes the loss NaN (a learning rate that would is refused: model.optim.lr <= 10), so the objective's
+    # loss turns NaN from its fourth call on
     import subprocess
 
     from hybrid_sysid.cli.train import main
+    from hybrid_sysid.model.objectives import LabelledObjective
 
-    args = [*TINY, "model.optim.lr=1e30", "trainer.progress_bar=false", f"hydra.run.dir={tmp_path / 'run'}"]
+    calls, forward = [], LabelledObjective.forward
+
+    def nan_from_the_fourth(self, pred, batch):
+        calls.append(1)
+        loss = forward(self, pred, batch)
+        return loss * float("nan") if len(calls) > 3 else loss
+
+    monkeypatch.setattr(LabelledObjective, "forward", nan_from_the_fourth)
+    args = [*TINY, "trainer.progress_bar=false", f"hydra.run.dir={tmp_path / 'run'}"]
     # data=tiny, simulated once for the test run
     code, out, err = cli_in_process(main, *args, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache})
     proc = subprocess.CompletedProcess(args, code, out, err)

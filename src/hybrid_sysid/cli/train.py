@@ -60,7 +60,8 @@ class TrainPreflight(Preflight):
 def outside_other_runs(out_dir: Path, key: str, resume=None) -> None:
     """A run or sweep lies inside no other run or sweep directory: a run in a completed run's checkpoints/ once
     trained there, and that run's report then listed two runs (eval refuses the same: cli.evaluate). A sweep's
-    job lives in its sweep's directory, so ``resume=`` of that job (its parent holds multirun.yaml) is allowed."""
+    job lives in its sweep's directory, so ``resume=`` of that job (its parent holds multirun.yaml), or that job's
+    existing directory as a single run's, is allowed."""
     from hybrid_sysid.runs.layout import SWEEP_CONFIG, enclosing_run
 
     here = out_dir.resolve()
@@ -68,7 +69,9 @@ def outside_other_runs(out_dir: Path, key: str, resume=None) -> None:
     if holder is None:
         return
     own_job = holder == here.parent and (holder / SWEEP_CONFIG).is_file()
-    if resume and own_job and Path(str(resume)).resolve() == here:
+    # a job of its sweep run again as a single run, in its own directory: its record decides (a completed one is
+    # skipped, a changed config refused: cli.job), as for the sweep's command again
+    if own_job and (here.is_dir() or (resume and Path(str(resume)).resolve() == here)):
         return
     where = "a path outside run and sweep directories, whose files are their record"
     bad(key, Shown(str(out_dir)), f"it lies inside the run or sweep directory {holder}; {where}")
