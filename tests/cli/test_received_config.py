@@ -3,25 +3,14 @@ or files is never resolved and its value never shown, and the run's cache and ou
 a received one is never written to."""
 
 import re
-import shutil
 
 import numpy as np
 import pytest
 
+from helpers.received import received
 from helpers.tree import snapshot
 
 SECRET = "hunter2-do-not-show"
-
-
-def received(tiny_run, tmp_path, line, replaced):
-    """A copy of the trained run whose saved config has ``line`` (as saved, indented) replaced."""
-    run = tmp_path / "received"
-    shutil.copytree(tiny_run, run)
-    config = run / ".hydra" / "config.yaml"
-    text = config.read_text()
-    assert f"\n{line}\n" in text
-    config.write_text(text.replace(f"\n{line}\n", f"\n{replaced}\n"))
-    return run
 
 
 @pytest.fixture

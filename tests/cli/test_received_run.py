@@ -12,6 +12,7 @@ import pytest
 
 from helpers.estimator_run import predict
 from helpers.hostile import laughs
+from helpers.received import received
 from helpers.tree import snapshot
 
 
@@ -23,17 +24,6 @@ def recording(tmp_path_factory):
     columns = np.c_[t, np.sin(9 * t), np.cos(7 * t)]
     np.savetxt(path, columns, delimiter=",", header="time,seat_acc,body_acc", comments="")
     return path
-
-
-def received(tiny_run, tmp_path, line, replaced):
-    """A copy of the trained run whose saved config has ``line`` (as saved, indented) replaced."""
-    run = tmp_path / "received"
-    shutil.copytree(tiny_run, run)
-    config = run / ".hydra" / "config.yaml"
-    text = config.read_text()
-    assert f"\n{line}\n" in text
-    config.write_text(text.replace(f"\n{line}\n", f"\n{replaced}\n"))
-    return run
 
 
 @pytest.mark.parametrize(

@@ -12,7 +12,7 @@ from hybrid_sysid.report.extras import Extra, register
 from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
-from hybrid_sysid.runs.rundir import read_yaml
+from hybrid_sysid.runs.reading import read_yaml
 
 TUNING = "tuning"  # the row key of its sub-runs: default or tuned
 

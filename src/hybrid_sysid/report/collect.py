@@ -19,8 +19,8 @@ from hybrid_sysid.core.checks import bad
 from hybrid_sysid.core.files import readable
 from hybrid_sysid.model.metrics import PARAMETERS, relative_deviation
 from hybrid_sysid.runs.layout import PREDICTIONS, RECORD
+from hybrid_sysid.runs.reading import find_runs as runs_below
 from hybrid_sysid.runs.rundir import DamagedFile, RunDir
-from hybrid_sysid.runs.rundir import find_runs as runs_below
 
 HEAD = ["run", "status", "error", "seed"]
 TAIL = [

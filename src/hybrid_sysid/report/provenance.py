@@ -31,7 +31,8 @@ import pandas as pd
 
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.report.collect import config_value
-from hybrid_sysid.runs.rundir import DamagedFile, RunDir, read_yaml
+from hybrid_sysid.runs.reading import read_yaml
+from hybrid_sysid.runs.rundir import DamagedFile, RunDir
 from hybrid_sysid.runs.sweepdir import SweepDir, sweep_dir_of
 
 # the overrides that only say where runs are written: left out of a command (they would name this machine's paths)

@@ -11,7 +11,8 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import flatten
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.runs import layout
-from hybrid_sysid.runs.rundir import RunDir, load_config
+from hybrid_sysid.runs.reading import load_config
+from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
 _uncompared: list[str] = []  # warn_uncompared's messages, from the preflight to the job's log file

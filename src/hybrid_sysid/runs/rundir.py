@@ -17,12 +17,12 @@ import shutil
 import sys
 from pathlib import Path
 
-import yaml
-from omegaconf import DictConfig, ListConfig, OmegaConf
+from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
-from hybrid_sysid.core.files import read_json, read_yaml_text, write_atomic, write_json_atomic, write_yaml_atomic
+from hybrid_sysid.core.files import read_json, write_atomic, write_json_atomic, write_yaml_atomic
 from hybrid_sysid.runs import layout, locks
+from hybrid_sysid.runs.reading import load_config, read_yaml
 from hybrid_sysid.runs.received import NotData, as_data
 
 log = logging.getLogger("hybrid_sysid")
@@ -265,8 +265,7 @@ class RunDir:
     def record_end(self, overrides, seed, status: str, error: str) -> dict:
         """Record a failed or interrupted job, unless the directory holds a completed run (never replaced). A
         record that cannot be written (a full disk) is reported on one line instead."""
-        problem = self.try_record_end(overrides, seed, status, error)
-        if problem is not None:
+        if (problem := self.try_record_end(overrides, seed, status, error)) is not None:
             print(f"error: could not record the {status} job in {self.path}: {problem}", file=sys.stderr)
         return {"status": status, "error": error}
 
@@ -299,26 +298,3 @@ class RunDir:
         if isinstance(why, BaseException):
             why = f"{type(why).__name__}: {' '.join(str(why).split())[:200]}"
         raise DamagedFile(key, Shown(str(self.path)), f"its {name} {verb} ({why})")
-
-
-def find_runs(path: Path) -> list[Path]:
-    """Every directory at or below ``path`` holding a record: a run, a sweep's jobs, a chain's sub-runs."""
-    path = Path(path)
-    found = {path.resolve()} if (path / layout.RECORD).is_file() else set()
-    found.update(p.parent.resolve() for p in path.rglob(layout.RECORD) if p.is_file())
-    return sorted(found)
-
-
-def read_yaml(path: Path):
-    """A YAML file as plain data; None when it is missing, damaged or beyond core.files' limits (a report then
-    knows less of the run)."""
-    try:
-        return yaml.safe_load(read_yaml_text(path))
-    except (OSError, ValueError, yaml.YAMLError):  # UnicodeDecodeError and core.files' refusals are ValueErrors
-        return None
-
-
-def load_config(path: Path) -> DictConfig | ListConfig:
-    """A received YAML file as OmegaConf reads it, within core.files' limits (size, regular file, depth, aliases
-    expanded): what OmegaConf.load would do without them."""
-    return OmegaConf.create(read_yaml_text(path))

@@ -11,7 +11,7 @@ from hybrid_sysid.config import flatten
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.runs import layout
-from hybrid_sysid.runs.rundir import load_config, read_yaml
+from hybrid_sysid.runs.reading import load_config, read_yaml
 
 KEY = "hydra.sweep.dir"
 ABSENT = "(absent)"
