@@ -324,6 +324,8 @@ def test_map_follows_the_prior_without_data_the_data_without_noise_and_is_calibr
     ml = fit_eiv(seat, body, DT, p0=np.exp(mean))
     posterior = fit_eiv(seat, body, DT, p0=np.exp(mean), prior=(mean, cov))
     assert posterior.converged.all()
+    for key in ("p", "se", "sigma2", "converged"):  # the ML fit it started from, kept: the ML fit of its own
+        np.testing.assert_array_equal(getattr(posterior.ml, key), getattr(ml, key))
     err_map, err_ml = np.log(posterior.p) - theta, np.log(ml.p) - theta
     z = np.sqrt(np.mean((err_map / posterior.se) ** 2, axis=0))
     assert ((0.9 < z) & (z < 1.1)).all()

@@ -49,6 +49,14 @@ def _trusted(fit, start: np.ndarray) -> np.ndarray:
     return (fit.converged & inside & (near | ~np.isfinite(start).all(axis=1)))[:, None]
 
 
+def _kept(out, p0: np.ndarray, se0: np.ndarray, guarded: bool = False) -> tuple[np.ndarray, np.ndarray]:
+    """The fit's (p, se) where it is defined (and, ``guarded``, trusted), the start's elsewhere."""
+    ok = np.isfinite(out.p).all(axis=1, keepdims=True)
+    if guarded:
+        ok &= _trusted(out, p0)
+    return np.where(ok, out.p, p0), np.where(ok, out.se, se0)
+
+
 class ErrorsInVariablesFit:
     """The errors-in-variables ML (or MAP) estimate of (p1, p2) per evaluation window, scored like a network.
 
@@ -126,6 +134,20 @@ class ErrorsInVariablesFit:
 
         ``guarded``: also where the likelihood fit is not to be trusted (``_trusted``): an anchor weighs the fit by
         its se, and a fit run to the edge of its box on a barely informative window comes with a small se."""
+        _, p0, se0, out = self._fit(seat, body, dt, measurement)
+        return _kept(out, p0, se0, guarded)
+
+    def fit_with_ml(self, seat, body, dt: float, measurement: str):
+        """With a prior: the band-passed least squares (physics.seat_fit.SeatFit), the guarded ML fit's (p, se) and
+        the MAP fit's (p, se) of the same windows, as ``fit_windows`` gives each, with the likelihood solved once
+        (the MAP fit starts from the ML one)."""
+        if self.prior is None:
+            raise ValueError("fit_with_ml needs a prior: the ML fit alone is fit_windows")
+        start, p0, se0, out = self._fit(seat, body, dt, measurement)
+        return start, _kept(out.ml, p0, se0, guarded=True), _kept(out, p0, se0)
+
+    def _fit(self, seat, body, dt: float, measurement: str):
+        """The least-squares start, the likelihood fit's start p0 and its fallback se0, and the EivFit."""
         seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
         start = fit_windows(seat, body, dt, measurement, self.fir)
         p0, se0 = start.p, start.se
@@ -145,10 +167,7 @@ class ErrorsInVariablesFit:
             fix=self.fix,
             skew_max=self.skew_max,
         )
-        ok = np.isfinite(out.p).all(axis=1, keepdims=True)
-        if guarded:
-            ok &= _trusted(out, p0)
-        return np.where(ok, out.p, p0), np.where(ok, out.se, se0)
+        return start, p0, se0, out
 
     def fit(self, seat, body, dt: float, measurement: str) -> np.ndarray:
         """(n, 2) estimates of windows (n, W) of seat and body acceleration (``fit_windows``' p)."""

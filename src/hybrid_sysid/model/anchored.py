@@ -142,11 +142,18 @@ class AnchoredCNN(FastCNN):
         p, se = self.eiv.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement, guarded=True)
         return SeatFit(p, se, fit.unexplained, fit.correlation)
 
-    def map_fit(self, signals: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """The MAP fit's p and se (B, 2) of each window, in the signals' dtype (NaN p where not defined)."""
+    def fits(self, signals: torch.Tensor) -> tuple[SeatFit, tuple[np.ndarray, np.ndarray] | None]:
+        """The anchor's fit of each window (``anchor``) and, with a prior, the MAP fit's (p, se) (B, 2) (NaN p where
+        not defined); with both the likelihood anchor and a prior, the likelihood is solved once for the two."""
+        if self.map is None or self.eiv is None:
+            fit = self.anchor(signals)
+            if self.map is None:
+                return fit, None
+            x = signals.detach().to("cpu", torch.float64).numpy()
+            return fit, self.map.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
         x = signals.detach().to("cpu", torch.float64).numpy()
-        p, se = self.map.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
-        return torch.from_numpy(p).to(signals), torch.from_numpy(se).to(signals)
+        start, (p, se), map_fit = self.map.fit_with_ml(x[:, 0], x[:, 1], self.dt, self.measurement)
+        return SeatFit(p, se, start.unexplained, start.correlation), map_fit
 
     def _stats(self, p, se):
         """log p about the head's centre, log10 se, and where p is defined and positive."""
@@ -157,14 +164,14 @@ class AnchoredCNN(FastCNN):
         return ratio, log_se, valid
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
-        fit = self.anchor(signals)
+        fit, map_fit = self.fits(signals)
         p_fit, se = (torch.from_numpy(a).to(signals) for a in (fit.p, fit.se))
         ratio, log_se, valid = self._stats(p_fit, se)
         unexplained = torch.from_numpy(np.log10(np.clip(fit.unexplained, 1e-12, 1.0)) / 6).to(signals)
         rho = torch.from_numpy(fit.correlation).to(signals)
         parts = [ratio, log_se, unexplained[:, None], rho[:, None], valid.to(signals)]
         if self.map is not None:
-            p_map, se_map = self.map_fit(signals)
+            p_map, se_map = (torch.from_numpy(a).to(signals) for a in map_fit)
             map_ratio, map_log_se, map_valid = self._stats(p_map, se_map)
             map_valid = map_valid.all(dim=1, keepdim=True)
             parts += [map_ratio, map_log_se, map_valid.to(signals)]

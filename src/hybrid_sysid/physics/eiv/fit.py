@@ -47,7 +47,8 @@ class EivFit(NamedTuple):
     tolerance. A window whose fit is not defined (no excitation, non-finite samples, a singular information matrix)
     has NaN p, sigma2 and cost, infinite se and converged False. ``fault`` (n,) with a fix: the fitted fault, the
     gain ratio g_seat / g_body, the body sensor's delay tau in seconds or the spring's hardening kappa in 1/m^2
-    (NaN where the fit is not defined); None without."""
+    (NaN where the fit is not defined); None without. ``ml``: with a prior, the ML fit the MAP one started from
+    (an EivFit itself), so a caller that needs both fits solves the likelihood once; None without."""
 
     p: np.ndarray
     se: np.ndarray
@@ -55,6 +56,7 @@ class EivFit(NamedTuple):
     cost: np.ndarray
     converged: np.ndarray
     fault: np.ndarray | None = None
+    ml: "EivFit | None" = None
 
 
 def _box(p_lo, p_hi):
@@ -144,11 +146,8 @@ def fit_eiv(
             "hardening": (-np.inf, np.inf),  # per window: fault_problem
         }[fix]
         lo, hi = np.append(lo, bound[0]), np.append(hi, bound[1])
-    p = np.full((n, 2), np.nan)
-    se = np.full((n, 2), np.inf)
-    sigma2, cost = np.full(n, np.nan), np.full(n, np.nan)
-    converged = np.zeros(n, bool)
-    fault = None if fix == "none" else np.full(n, np.nan)
+    out = _Results(n, fix != "none")
+    ml = None if prior is None else _Results(n, fix != "none")
     block = max(1, CHUNK // (N // 2 + 1))
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         for start in range(0, n, block):
@@ -165,7 +164,7 @@ def fit_eiv(
 
                     return minimise(evaluate, th, lo, hi, max_iter, tol, prior_, kappa_)
 
-                theta = theta0[rows]
+                theta, to_fault = theta0[rows], None
             else:
                 solve, theta, to_fault = fault_problem(
                     fix, seat[rows], body[rows], theta0[rows], grid, lam, float(dt), model, lo, hi, max_iter, tol
@@ -173,6 +172,7 @@ def fit_eiv(
             theta, V, h, conv = solve(theta)
             kappa = V / dof  # N sigma^2: V's scale in the likelihood
             if prior is not None:
+                ml.store(rows, theta, V, h, conv, kappa, N, to_fault)
                 # two starts, the ML fit and the prior's mean, the lower posterior kept: where the data leave p
                 # loose the ML fit may sit at the box's edge, in another basin than the one the prior favours
                 first = solve(theta, (mean, prec), kappa)
@@ -184,16 +184,33 @@ def fit_eiv(
                     np.where(better.reshape((-1,) + (1,) * (a.ndim - 1)), b, a) for a, b in zip(first, second)
                 )
                 h = h + kappa[:, None, None] * prec
-            ok = positive(h) & np.isfinite(theta).all(axis=1) & np.isfinite(V) & (kappa >= 0)
-            if fault is not None:
-                fault[rows[ok]] = to_fault(theta)[ok]
-            rows, theta, V, h, conv, kappa = rows[ok], theta[ok], V[ok], h[ok], conv[ok], kappa[ok]
-            p[rows] = np.exp(theta[:, :2])
-            se[rows] = np.sqrt(kappa[:, None] * inverse_diagonal(h)[:, :2])
-            sigma2[rows] = kappa / N
-            cost[rows] = V
-            converged[rows] = conv
-    return EivFit(p, se, sigma2, cost, converged, fault)
+            out.store(rows, theta, V, h, conv, kappa, N, to_fault)
+    return out.fit(None if ml is None else ml.fit())
+
+
+class _Results:
+    """The arrays of an EivFit being filled block by block; a window no block fills stays not defined."""
+
+    def __init__(self, n: int, fault: bool):
+        self.p, self.se = np.full((n, 2), np.nan), np.full((n, 2), np.inf)
+        self.sigma2, self.cost = np.full(n, np.nan), np.full(n, np.nan)
+        self.converged = np.zeros(n, bool)
+        self.fault = np.full(n, np.nan) if fault else None
+
+    def store(self, rows, theta, V, h, conv, kappa, N, to_fault):
+        """Keep the solution of ``rows`` where it is defined: a positive Hessian, finite theta and V."""
+        ok = positive(h) & np.isfinite(theta).all(axis=1) & np.isfinite(V) & (kappa >= 0)
+        if self.fault is not None:
+            self.fault[rows[ok]] = to_fault(theta)[ok]
+        rows, theta, V, h, conv, kappa = rows[ok], theta[ok], V[ok], h[ok], conv[ok], kappa[ok]
+        self.p[rows] = np.exp(theta[:, :2])
+        self.se[rows] = np.sqrt(kappa[:, None] * inverse_diagonal(h)[:, :2])
+        self.sigma2[rows] = kappa / N
+        self.cost[rows] = V
+        self.converged[rows] = conv
+
+    def fit(self, ml: EivFit | None = None) -> EivFit:
+        return EivFit(self.p, self.se, self.sigma2, self.cost, self.converged, self.fault, ml)
 
 
 def _posterior(solved, mean, prec, kappa):
