@@ -3,10 +3,12 @@ the run is evaluated and recorded once."""
 
 import json
 import os
+import signal
 import socket
 import subprocess
 import sys
 import textwrap
+import time
 from itertools import islice
 
 import numpy as np
@@ -15,7 +17,7 @@ import pytest
 from hybrid_sysid.data import DatasetSpec
 from hybrid_sysid.data.datamodule import QuarterCarDataModule, RandomWindows
 
-from helpers.app_process import run_app, user_env
+from helpers.app_process import launch, run_app, user_env
 from helpers.started_early import started_early
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
@@ -192,3 +194,42 @@ def test_a_node_count_that_does_not_match_the_world_size_is_one_line_and_writes_
     lines = proc.stderr.strip().splitlines()
     assert len(lines) == 1 and "trainer.num_nodes" in lines[0] and "WORLD_SIZE = 3" in lines[0], proc.stderr
     assert not (tmp_path / "run").exists()
+
+
+def listening(port: int) -> bool:
+    """Whether a socket on this machine listens on TCP ``port`` (/proc/net/tcp, tcp6): the rendezvous's store."""
+    for table in ("/proc/net/tcp", "/proc/net/tcp6"):
+        try:
+            rows = [line.split() for line in open(table).read().splitlines()[1:]]
+        except OSError:
+            continue
+        if any(row[3] == "0A" and int(row[1].rsplit(":", 1)[1], 16) == port for row in rows):
+            return True
+    return False
+
+
+@pytest.mark.integration
+def test_a_rendezvous_with_a_node_never_started_ends_on_sigterm_with_its_record(tmp_path, tiny_cache):
+    """MASTER_ADDR and NODE_RANK given by hand for two nodes, and node 1 never started: rank 0 waits in torch's
+    rendezvous, C code that runs no Python handler. It once waited there 30 minutes, deaf to SIGTERM. The signal
+    is sent once rank 0's store listens, so it lands in that wait; the run must end as any interrupted run does."""
+    port = free_port()
+    env = {**os.environ, "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port), "NODE_RANK": "0"}
+    args = ["data=tiny", "trainer=debug", "trainer.max_steps=2", "trainer.num_nodes=2"]
+    proc = launch(tmp_path, *args, f"hydra.run.dir={tmp_path / 'run'}", cache=tiny_cache, env=env)
+    try:
+        started = time.monotonic()
+        while not listening(port):
+            assert proc.poll() is None, proc.communicate()[0][-3000:]
+            assert time.monotonic() - started < 300, "rank 0 never reached the rendezvous"
+            time.sleep(0.2)
+        time.sleep(1.0)
+        proc.send_signal(signal.SIGTERM)
+        out = proc.communicate(timeout=60)[0]  # without the watcher: the rendezvous's 30-minute timeout
+    finally:
+        proc.kill()
+    errors = [line for line in out.splitlines() if line.startswith("error:")]
+    assert proc.returncode == 143 and len(errors) == 1 and "SIGTERM" in errors[0], out[-3000:]
+    assert "Traceback" not in out
+    record = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    assert record["status"] == "interrupted" and "SIGTERM" in record["error"]

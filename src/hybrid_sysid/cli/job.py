@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import copy
 import logging
+import os
 import signal
 import sys
 import threading
@@ -82,7 +83,7 @@ def run_job(
                 sys.exit(128 + received)
             return result
         if not ranks.is_global_zero():  # a DDP rank above 0: global rank 0 records the run, this one writes nothing
-            with interruptible(), job_running():
+            with interruptible(), job_running(), stop.watched(_deaf(None, run_dir, overrides, seed, again)):
                 quiet_libraries()
                 return work()
         mine = multirun and not locks.holds(run_dir)  # a single job's preflight holds it already
@@ -94,7 +95,7 @@ def run_job(
                 log.error("job not run: %s", exc)
                 return {"status": "failed", "error": f"{type(exc).__name__}: {exc}"}
         try:
-            with interruptible(), job_running():
+            with interruptible(), job_running(), stop.watched(_deaf(run, run_dir, overrides, seed, again)):
                 quiet_libraries()  # Lightning's messages once, through the job's logging (hybrid_sysid.cli.console)
                 try:
                     result = work()
@@ -133,6 +134,21 @@ def run_job(
         finally:
             if mine:  # a worker runs several jobs: each job's directory is free again once it ends
                 locks.release(run_dir)
+
+
+def _deaf(run: RunDir | None, run_dir: Path, overrides: list[str], seed: int, again: str):
+    """What ends a job whose main thread does not take a signal (core.stop.watched): its record says interrupted
+    (rank 0 alone writes one), one line says where it waited, and the process ends with 128 + the signal."""
+
+    def end(signum: int) -> None:
+        name = signal.Signals(signum).name
+        why = f"interrupted by {name} during a wait that no signal reaches (a rendezvous with nodes not started?)"
+        if run is not None:
+            run.try_record_end(overrides, seed, "interrupted", why)
+        print(f"error: {run_dir}: {why}; {again}", file=sys.stderr, flush=True)
+        os._exit(128 + signum)
+
+    return end
 
 
 def draws_figures(setting, multirun: bool) -> bool:

@@ -7,13 +7,22 @@ finaliser, a weak-reference callback, a library's broad handler), so the work wo
 come. The work raises Interrupted itself, at its safe points (``check``): after every training and validation
 batch (training.callbacks.StopAtSafePoints), after every evaluation batch, while waiting for the dataset cache's
 lock, before a run scores its model and before it writes its record; a sweep checks between its jobs.
+
+A wait in C code that never runs Python's handlers (torch's rendezvous, waiting for nodes nobody started) would
+never reach a safe point: ``watched`` ends such a wait from a thread (docs/reliability/run.md).
 """
 
 from __future__ import annotations
 
+import os
 import signal
+import threading
+import time
+from contextlib import contextmanager
+from typing import Callable, Iterator
 
-_signal: dict[str, int | None] = {"requested": None, "received": None, "requeue": None}
+_signal: dict[str, int | None] = {"requested": None, "received": None, "requeue": None, "taken": 0}
+GRACE = 2.0  # seconds the main thread has to take a signal before ``watched`` decides it is deaf
 
 
 class Interrupted(BaseException):
@@ -34,6 +43,7 @@ def request(signum: int) -> None:
 def note(signum: int) -> None:
     """Remember that the process received a termination signal (between jobs too): its exit status says so."""
     _signal["received"] = _signal["received"] or signum
+    _signal["taken"] += 1
 
 
 def clear() -> None:
@@ -43,7 +53,7 @@ def clear() -> None:
 
 def reset() -> None:
     """As a new process starts (a test that runs several commands in one process)."""
-    _signal.update(requested=None, received=None)
+    _signal.update(requested=None, received=None, taken=0)
 
 
 def requested() -> int | None:
@@ -71,3 +81,55 @@ def check() -> None:
     """A safe point: raise Interrupted if a termination signal was requested and has not ended the work yet."""
     if _signal["requested"] is not None:
         raise Interrupted(_signal["requested"])
+
+
+@contextmanager
+def watched(on_deaf: Callable[[int], None], grace: float = GRACE) -> Iterator[None]:
+    """Within, in the main thread: a SIGTERM or SIGINT that no Python handler takes (``note``) within ``grace``
+    seconds calls ``on_deaf(signum)`` from a watcher thread, which must end the process (``os._exit``).
+
+    Why a thread: the main thread may be blocked in C code that runs no Python handler until it returns, and
+    torch's rendezvous with nodes that never start returns only at its timeout (30 minutes). The signal still
+    reaches the pipe of ``signal.set_wakeup_fd``, which Python's own C handler writes to; the thread reads it
+    there. A main thread that is merely busy takes the signal within the grace, and the thread does nothing."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    r, w = os.pipe()
+    os.set_blocking(w, False)
+    previous = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    done = threading.Event()
+
+    def watch() -> None:
+        expected = _signal["taken"]
+        while not done.is_set():
+            try:
+                data = os.read(r, 64)
+            except OSError:
+                return
+            for signum in data:
+                if signum not in (signal.SIGTERM, signal.SIGINT):
+                    continue
+                expected += 1
+                deadline = time.monotonic() + grace
+                while _signal["taken"] < expected and time.monotonic() < deadline and not done.is_set():
+                    time.sleep(0.05)
+                if _signal["taken"] < expected and not done.is_set():
+                    on_deaf(signum)
+                    return
+                expected = max(expected, _signal["taken"])
+
+    thread = threading.Thread(target=watch, name="hybrid-sysid-signal-watch", daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        signal.set_wakeup_fd(previous)
+        try:
+            os.write(w, b"\0")  # wakes the thread, which sees done and returns
+        except BlockingIOError:  # a full pipe wakes it as well
+            pass
+        thread.join()
+        os.close(r)
+        os.close(w)
