@@ -151,6 +151,7 @@ class Config:
     resume: Optional[str] = None
     init_from: Optional[str] = None  # a run directory: start from its best weights
     run_figures: Any = "auto"  # a run's figures/: true, false, or auto (a single run yes, a sweep's jobs no)
+    tags: List[str] = field(default_factory=list)  # the user's labels: in metrics.json and the trackers (tags=[a,b])
     data: DataConfig = MISSING
     road: RoadConfig = MISSING
     noise: NoiseConfig = MISSING
