@@ -18,8 +18,16 @@ log = logging.getLogger("hybrid_sysid")
 _uncompared: list[str] = []  # warn_uncompared's messages, from the preflight to the job's log file
 # keys that cannot change a run's weights or scores, so a resumed run may differ in them (a name ending in "."
 # frees every key under it: where a run's files go, conf/paths); which noise levels the learning curves are taken
-# at changes only which curve rows are recorded
-RESUME_FREE = {"resume", "data.cache_dir", "trainer.progress_bar", "trainer.profiler", "paths.", "noise.curve_std"}
+# at changes only which curve rows are recorded; tags only label the run
+RESUME_FREE = {
+    "resume",
+    "data.cache_dir",
+    "trainer.progress_bar",
+    "trainer.profiler",
+    "paths.",
+    "noise.curve_std",
+    "tags",
+}
 # keys added after a run may have been saved, at the value that does what that run did: a saved config without
 # them and one with this value are the same run (a value other than this one is another run)
 ADDED = {
@@ -31,6 +39,7 @@ ADDED = {
     "sensor.lowpass_range_hz": None,
     "transfer.anchored_objectives": [],
     "trainer.num_nodes": 1,
+    "tags": [],
 }
 
 
