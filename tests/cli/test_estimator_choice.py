@@ -8,7 +8,7 @@ import pytest
 import yaml
 from hydra import compose, initialize_config_dir
 
-from hybrid_sysid.cli.choices import SET_BY_ESTIMATOR, check_estimator
+from hybrid_sysid.cli.choices import SET_BY_ESTIMATOR, check_choices, check_estimator
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.core.checks import ConfigError
 
@@ -82,3 +82,70 @@ def test_presets_and_values_under_the_groups_pass(overrides, refused):
             check_estimator(cfg)
     else:
         check_estimator(cfg)
+
+
+# A baseline has no network: the groups it never reads are those only the network estimators set (conf/estimator).
+NETWORK_GROUPS = {"model", "objective"}
+
+
+def test_the_groups_refused_beside_a_baseline_are_those_only_networks_set():
+    from hybrid_sysid.cli.choices import UNREAD_BY_BASELINE
+
+    names = [p.stem for p in Path(CONF_DIR, "estimator").glob("*.yaml")]
+    networks = [n for n in names if "baseline" not in overridden_groups(n)]
+    baselines = [n for n in names if "baseline" in overridden_groups(n)]
+    assert networks and baselines
+    assert set().union(*map(overridden_groups, networks)) == NETWORK_GROUPS == set(UNREAD_BY_BASELINE)
+    assert set().union(*map(overridden_groups, baselines)) == {"baseline"}
+
+
+@pytest.mark.parametrize(
+    "args, key",
+    [
+        (["baseline=eiv", "objective=hybrid"], "objective"),
+        (["baseline=ls_window", "model=paper_cnn"], "model"),
+        (["-m", "baseline=eiv,ls_window", "objective=hybrid,labelled"], "objective"),
+        (["-m", "experiment=robustness", "baseline=ls_window"], "objective"),  # the preset sweeps objective=
+        (["-m", "experiment=baselines", "objective=hybrid"], "objective"),  # the preset sweeps baseline=
+    ],
+)
+def test_a_model_or_objective_beside_a_baseline_is_one_line_naming_it_and_makes_nothing(
+    args, key, tmp_path, cli_in_process, tiny_cache
+):
+    """P22 (docs/reliability/adversarial_physical_limit.md): the record named an objective no baseline reads."""
+    from hybrid_sysid.cli.train import main
+
+    out = tmp_path / "out"
+    where = f"hydra.sweep.dir={out}" if "-m" in args else f"hydra.run.dir={out}"
+    code, _, err = cli_in_process(
+        main, *args, "data=tiny", "trainer=debug", where, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache}
+    )
+    assert code == 2 and len(err.strip().splitlines()) == 1, err[-2000:]
+    assert err.startswith(f"error: {key} = ") and "beside baseline=" in err, err
+    assert not out.exists() and not (tmp_path / "outputs").exists()
+
+
+@pytest.mark.parametrize(
+    "overrides",
+    [
+        ["baseline=eiv"],
+        ["~baseline", "objective=hybrid", "model=paper_cnn"],  # no baseline: both are read
+        ["baseline=ls_bandpass", "model.optim.lr=0.01"],  # a value, not a choice
+        ["baseline=eiv", "~objective"],  # a deletion chooses nothing
+    ],
+)
+def test_a_baseline_alone_or_with_values_passes(overrides):
+    check_choices(composed(*overrides))
+
+
+def test_every_preset_and_estimator_passes_the_choices_check():
+    """Each experiment (with and without debug=fast) and each estimator, as shipped, composes to allowed choices."""
+    experiments = sorted(p.stem for p in Path(CONF_DIR, "experiment").glob("*.yaml"))
+    estimators = sorted(p.stem for p in Path(CONF_DIR, "estimator").glob("*.yaml"))
+    assert "anchored_clean" in experiments and "eiv" in estimators
+    for overrides in (
+        *([f"experiment={e}"] for e in experiments),
+        *([f"experiment={e}", "debug=fast"] for e in experiments),
+        *([f"estimator={e}"] for e in estimators),
+    ):
+        check_choices(composed(*overrides))

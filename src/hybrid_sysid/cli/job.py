@@ -26,7 +26,7 @@ from typing import Any, Callable
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
-from hybrid_sysid.cli.choices import check_estimator
+from hybrid_sysid.cli.choices import check_choices
 from hybrid_sysid.cli.console import job_running, quiet_libraries
 from hybrid_sysid.cli.orphans import exit_with_parent, job_in_progress
 from hybrid_sysid.cli.process import (
@@ -190,7 +190,7 @@ class Preflight(Callback):
 
     def _run_start(self, config: DictConfig) -> None:
         run_dir, overrides = Path(str(config.hydra.run.dir)), list(config.hydra.overrides.task)
-        check_estimator(config)
+        check_choices(config)
         self.check(task_config(config), overrides)
         make_dir(run_dir, "hydra.run.dir")
         locks.hold(run_dir, "hydra.run.dir")  # before Hydra writes .hydra/ there: one writer per directory
@@ -203,7 +203,7 @@ class Preflight(Callback):
     def _multirun_start(self, config: DictConfig) -> None:
         check_paths(task_config(config))  # an empty paths.root would make the sweep's directory at the root
         sweep_dir = PROCESS.sweep_dir = Path(str(config.hydra.sweep.dir))
-        check_estimator(config)
+        check_choices(config)
         # a swept choice's package: one line here, not every job failing
         missing = missing_extra_of_sweep(config.hydra.overrides.task, task_config(config))
         if missing:
