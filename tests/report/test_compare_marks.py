@@ -236,3 +236,16 @@ def test_seeds_that_agree_have_the_value_as_their_interval():
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert t_interval([2.5, 2.5, 2.5]) == (2.5, 2.5)
+
+
+def test_an_interval_never_leaves_the_possible_range_and_keeps_its_upper_end():
+    """Two seeds far apart: the t interval of their mean reaches below 0, which no mean relative deviation can.
+    The table's interval is the same one cut at 0 (the true mean is never negative, so the coverage is unchanged)."""
+    from hybrid_sysid.report.stats import t_interval
+
+    far = [0.05, 0.6]
+    low, high = t_interval_by_hand(far)
+    assert low < 0  # the case: an uncut interval leaves the range
+    assert t_interval(far) == (0.0, pytest.approx(high, rel=1e-12))
+    close = [0.10, 0.12, 0.11]
+    assert t_interval(close) == pytest.approx(t_interval_by_hand(close), rel=1e-12)
