@@ -29,11 +29,15 @@ def _data_fields() -> list:
             if f.name not in OUTSIDE_DATA:
                 default = f.default if f.default is not NO_DEFAULT else MISSING
                 out.append((f.name, hints[f.name], field(default=default)))
-    return out + [("cache_dir", str, field(default="${paths.cache_dir}"))]
+    recordings = [  # data=recordings: a user's files (data.recordings); null: the simulator's recordings
+        ("path", Optional[str], field(default=None)),
+        ("labels", Optional[str], field(default=None)),
+    ]
+    return out + [("cache_dir", str, field(default="${paths.cache_dir}"))] + recordings
 
 
 DataConfig = make_dataclass("DataConfig", _data_fields())
-DataConfig.__doc__ = "The data section: DatasetSpec's and WindowSettings' fields, and cache_dir."
+DataConfig.__doc__ = "The data section: DatasetSpec's and WindowSettings' fields, cache_dir, and a user's files."
 
 
 @dataclass

@@ -40,6 +40,8 @@ ADDED = {
     "transfer.anchored_objectives": [],
     "trainer.num_nodes": 1,
     "tags": [],
+    "data.path": None,
+    "data.labels": None,
 }
 
 
