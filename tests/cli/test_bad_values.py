@@ -1,6 +1,8 @@
 """The command itself on bad values of issue 46: exit 2, one line on stderr naming the key, no traceback, and
 no directory or file made, under the working directory or at the filesystem's root."""
 
+from pathlib import Path
+
 import pytest
 
 CASES = [
@@ -45,3 +47,48 @@ def test_values_at_the_edge_of_their_ranges_train_and_record(tmp_path, cli_in_pr
     assert record["status"] == "completed" and record["seed"] == 4294967295 and record["threads"] == 1
     assert {r["noise_std"] for r in record["results"]} == {0.0}
     assert all(r["mean_rel_dev"] >= 0 for r in record["results"])
+
+
+def test_a_preset_of_the_joblib_launcher_run_with_launcher_basic_composes(tmp_path, cli_in_process, tiny_cache):
+    """P50 (docs/reliability/adversarial_physical_limit.md): experiment=anchored_clean launcher=basic failed on the
+    preset's joblib n_jobs. It now composes with Hydra's basic launcher: the sweep's first check after composing,
+    the estimator's (an objective= beside its swept estimator), is what refuses it, before any directory."""
+    from hybrid_sysid.cli.train import main
+
+    sweep = tmp_path / "sweep"
+    args = ["-m", "experiment=anchored_clean", "launcher=basic", "objective=hybrid", f"hydra.sweep.dir={sweep}"]
+    code, _, err = cli_in_process(main, *args, cwd=tmp_path, env={"HYBRID_SYSID_CACHE": tiny_cache})
+    assert code == 2 and err.startswith("error: estimator = 'ls,eiv,eiv_map,anchored_cross_segment'"), err[-2000:]
+    assert not sweep.exists() and not (tmp_path / "outputs").exists()
+
+
+def test_the_anchored_presets_keep_the_joblib_launchers_two_jobs():
+    import yaml
+    from hydra import compose, initialize_config_dir
+
+    from hybrid_sysid.config import CONF_DIR
+
+    joblib = yaml.safe_load((Path(CONF_DIR) / "launcher" / "joblib.yaml").read_text())["hydra"]["launcher"]
+    with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+        for name in ("anchored", "anchored_clean"):
+            launcher = compose("config", [f"experiment={name}"], return_hydra_config=True).hydra.launcher
+            assert launcher._target_.endswith("JoblibLauncher") and launcher.n_jobs == joblib["n_jobs"] == 2
+            basic = compose("config", [f"experiment={name}", "launcher=basic"], return_hydra_config=True)
+            assert basic.hydra.launcher._target_.endswith("BasicLauncher") and "n_jobs" not in basic.hydra.launcher
+
+
+@pytest.mark.parametrize(
+    "args",
+    [
+        ["-m", "experiment=tuned", "launcher=basic"],  # the preset sets the joblib launcher's n_jobs: 3
+        ["-m", "launcher=basic", "hydra.launcher.n_jobs=3"],
+    ],
+)
+def test_a_joblib_key_beside_another_launcher_is_one_line_naming_it_and_the_way_out(tmp_path, cli_in_process, args):
+    from hybrid_sysid.cli.train import main
+
+    code, _, err = cli_in_process(main, *args, f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path)
+    lines = err.strip().splitlines()
+    assert code == 2 and len(lines) == 1, err[-2000:]
+    assert lines[0].startswith("error: hydra.launcher.n_jobs is not allowed: ") and "launcher=joblib" in lines[0]
+    assert list(tmp_path.iterdir()) == []

@@ -5,6 +5,8 @@ allowed: what is allowed``, so these are too."""
 
 from __future__ import annotations
 
+import re
+
 from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
 from omegaconf.errors import OmegaConfBaseException
 
@@ -25,8 +27,13 @@ def composition_error(exc: BaseException) -> ConfigError | None:
             value = cause.value if cause.value is not None else NO_VALUE
             # OmegaConf's message: its first line; the lines after it name the key again and its object types
             first = (str(cause.msg or cause).strip().splitlines() or [""])[0]
-            return ConfigError(cause.full_key, value, _words(first))
+            return ConfigError(cause.full_key, value, _words(first) + _launcher_hint(cause.full_key))
         lines = [line for line in str(exc).splitlines() if line.strip()]
+        full_key = re.search(r"full_key: (\S+)", str(exc))
+        if full_key and len(lines) > 1:  # a preset's key the schema lacks: "In 'experiment/tuned': ... full_key: k"
+            where = re.match(r"In '([^']+)'", lines[0])
+            said = _words(lines[1]) + (f" (composing {where.group(1)})" if where else "")
+            return ConfigError(full_key.group(1), allowed=said + _launcher_hint(full_key.group(1)))
         return ConfigError(_override_key(lines[0]) if lines else "the config", allowed=_words(" ".join(lines)))
     return None
 
@@ -52,3 +59,13 @@ def _override_key(line: str) -> str:
 
 def _words(text: str) -> str:
     return " ".join(str(text).split())
+
+
+def _launcher_hint(key: str) -> str:
+    """The way out of a key the launcher chosen lacks: a preset's (experiment=tuned) or the user's joblib n_jobs
+    beside launcher=basic is the common case."""
+    if not key.startswith("hydra.launcher."):
+        return ""
+    if key == "hydra.launcher.n_jobs":
+        return "; n_jobs is launcher=joblib's: keep launcher=joblib, with hydra.launcher.n_jobs=1 for one job at a time"
+    return "; the launcher chosen has no such key: choose the launcher it belongs to (conf/launcher), or leave it out"
