@@ -1,5 +1,5 @@
 """TensorBoard's HPARAMS tab: a run's hyperparameters (the config groups chosen, the seed, learning rate, batch
-size, training noise and steps, and every key the sweep varies) beside its final test metrics."""
+size, training noise and steps, the user's tags, and every key the sweep varies) beside its final test metrics."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from typing import Any, Iterable
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config.tags import joined
 from hybrid_sysid.training.tracking.naming import Naming, objective_name, override_key
 
 # the hyperparameters of the table, beside the config groups chosen and the swept keys
@@ -23,8 +24,11 @@ HPARAM_KEYS = (
 
 def hparams_values(cfg: DictConfig, naming: Naming) -> dict[str, Any]:
     """The hyperparameters of TensorBoard's HPARAMS table: the config groups chosen (objective, model, data,
-    ...), the seed, learning rate, batch size, training noise and steps, and every key the sweep varies."""
+    ...), the seed, learning rate, batch size, training noise and steps, the config's tags (one text field, when
+    any) and every key the sweep varies."""
     out: dict[str, Any] = {"objective": objective_name(cfg, naming.choices)}
+    if cfg.get("tags"):
+        out["tags"] = joined(cfg.tags)
     for group in HPARAM_GROUPS[1:]:
         if naming.choices.get(group) is not None:
             out[group] = str(naming.choices[group])

@@ -1,8 +1,8 @@
 """What a run and a sweep keep in MLflow beyond Lightning's metrics: tags (objective, seed, preset, sweep, run
-directory, overrides, git commit), the run's files (its record, curves and Hydra config; its figures once drawn,
-:func:`log_run_figures`), and a sweep's summary table and figures in one more run of its experiment, ``sweep
-summary`` (:func:`log_sweep`), the table also as the experiment's description. Nothing here fails a run that has
-written its record: what cannot be written is a warning."""
+directory, overrides, git commit, the config's ``tags``), the run's files (its record, curves and Hydra config;
+its figures once drawn, :func:`log_run_figures`), and a sweep's summary table and figures in one more run of its
+experiment, ``sweep summary`` (:func:`log_sweep`), the table also as the experiment's description. Nothing here
+fails a run that has written its record: what cannot be written is a warning."""
 
 from __future__ import annotations
 
@@ -14,6 +14,7 @@ from typing import Sequence
 from filelock import FileLock
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config.tags import joined
 from hybrid_sysid.runs.layout import FIGURES, SWEEP_CONFIG, TRACKED
 from hybrid_sysid.runs.provenance import git_state
 from hybrid_sysid.training.tracking.naming import Naming, experiment_name, objective_name
@@ -37,6 +38,8 @@ def run_tags(cfg: DictConfig, naming: Naming, run_dir: Path, overrides: Sequence
         "run_dir": str(Path(run_dir).resolve()),
         "overrides": " ".join(overrides),
     }
+    if cfg.get("tags"):  # the user's labels, one field: search them with tags.tags LIKE '%dt2ms%'
+        tags["tags"] = joined(cfg.tags)
     if cfg.get("baseline") is not None:
         tags["baseline"] = tags["objective"]
     if naming.choices.get("model") and cfg.get("baseline") is None:
