@@ -20,12 +20,11 @@ from hybrid_sysid.config.memory import check_memory
 from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.config.schema import SECTIONS
 from hybrid_sysid.config.tags import check_tags
-from hybrid_sysid.config.targets import arguments, build, check_objective_members, check_target, data_module
+from hybrid_sysid.config.targets import arguments, build, check_objective_members, check_target
 from hybrid_sysid.config.trainer import check_trainer, check_trainer_arguments
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.install import install_command
 from hybrid_sysid.core.options import MONITORS, TASKS
-from hybrid_sysid.data import recordings_checks
 from hybrid_sysid.data.spec import (
     NOISE_MAX,
     NOISE_UNIT,
@@ -58,11 +57,10 @@ def config_key(key: str) -> str:
     return CONFIG_PATHS.get(key, f"data.{key}")
 
 
-def validate(cfg: DictConfig, training: bool = True, trains: bool = True) -> None:
+def validate(cfg: DictConfig, training: bool = True) -> None:
     """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed.
     ``training=False``: a received run's saved config read to estimate with it, without what only training on
-    this machine needs (its loggers and callbacks installed, its dataset in memory, data.path's files).
-    ``trains=False``: an evaluation of a trained network, whose objective never runs (data.recordings_checks)."""
+    this machine needs (its loggers and callbacks installed, its dataset in memory)."""
     _check_known_keys(cfg)
     # typed values (derived ones are checked later); the car's constants have their own check
     _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
@@ -89,15 +87,13 @@ def validate(cfg: DictConfig, training: bool = True, trains: bool = True) -> Non
     spec = DatasetSpec.from_config(cfg)
     with _placed():
         BatchSettings(cfg.model.batch_size, cfg.noise.train_std, cfg.noise.get("train_std_max")).validate()
-        spec.validate_values() if cfg.data.get("path") else spec.validate()  # its stability search: the one that costs
-    spec = recordings_checks.checked(cfg, spec, training, trains)  # data=recordings: its files (else spec as is)
+        spec.validate()  # its stability search of the time step last: the one check that costs
     if cfg.get("baseline") is not None:  # each checks the window against what it reads
         _validate_baseline(cfg, spec)
     else:
         _validate_training(cfg, spec)
         if training:  # Lightning's own checks of the trainer's arguments, trainer.extra's too
             check_trainer_arguments(cfg.trainer)
-    data_module(cfg)  # data.module's, when set: built, and checked against the run's objective or baseline
     check_eval_windows(cfg.evaluation.windows, WindowSettings.from_config(cfg).n_starts(spec), "evaluation.windows")
 
 
@@ -133,7 +129,7 @@ def _check_noise(cfg: DictConfig) -> None:
 def _check_steps(cfg: DictConfig) -> None:
     """A network's, objective's or baseline's ``dt`` (``${data.dt}`` in every preset) is the recordings' step: any
     other would read them at a step they were not sampled at (model.net.dt=0.01 on 0.005 s data: 50% off)."""
-    for section in ("model.net", "objective", "baseline", "data.module"):
+    for section in ("model.net", "objective", "baseline"):
         node = OmegaConf.select(cfg, section)
         step = node.get("dt") if isinstance(node, DictConfig) else None
         if step is not None and step != cfg.data.dt:
