@@ -45,7 +45,7 @@ def make_sweep(root):
                 root / f"{i}_{seed}",
                 ["experiment=anchored", f"fault={fault}", f"estimator={estimator}", f"seed={seed}"],
                 seed,
-                results=known_results({("test", n, p): 0.1 for n in NOISE for p in ("p1", "p2")}),
+                results=known_results({("test", n, p): 0.1 for n in NOISE for p in ("p1", "p2")}, n=N),
             )
             rows = []
             for n, pair in factors.items():
@@ -114,3 +114,70 @@ def test_a_job_copied_under_another_number_counts_once(tmp_path):
     before = table_rows(targets_markdown([sweep]))
     shutil.copytree(sweep / "3_0", sweep / "9_0")  # anchored_cross_segment, clean, seed 0, again
     assert table_rows(targets_markdown([sweep])) == before
+
+
+def cut(path, keep_bytes):
+    data = path.read_bytes()
+    path.write_bytes(data[:keep_bytes])
+
+
+def notes(text):
+    return [line for line in text.splitlines() if line.startswith("- `")]
+
+
+def test_a_clean_sweep_has_no_note_and_repeated_rows_are_no_cut(tmp_path):
+    sweep = make_sweep(tmp_path / "sweep")
+    before = targets_markdown([sweep])
+    assert notes(before) == [] and table_rows(before)
+    p = sweep / "0_0" / "predictions.csv"
+    rows = pd.read_csv(p)
+    pd.concat([rows, rows]).to_csv(p, index=False)  # P59: the rows doubled are the same recordings
+    assert targets_markdown([sweep]) == before
+
+
+@pytest.mark.parametrize(
+    "damage, why",
+    [
+        ("rows", "holds 57 test recordings at noise 0.1 where its record counts 60"),  # its last 3 rows
+        ("bytes", "ends within a row (cut)"),  # cut in the middle of its last rows
+        ("300", "ends within a row (cut)"),  # 300 bytes: no test row left, and its last row cut
+        ("text", "cannot be read, or holds no test rows at K = 1"),  # P54's p1_pred as text
+        ("gone", "is missing"),
+    ],
+)
+def test_a_cut_predictions_file_is_named_and_its_run_left_out(tmp_path, damage, why):
+    """P53 (docs/reliability/adversarial_physical_limit.md): a cut file paired fewer recordings in silence. The
+    reference: the same sweep without that run's directory, whose targets come from the other seed alone."""
+    import shutil
+
+    sweep, reference = make_sweep(tmp_path / "sweep"), make_sweep(tmp_path / "reference")
+    shutil.rmtree(reference / "0_0")
+    p = sweep / "0_0" / "predictions.csv"  # clean eiv, seed 0: the reference of most goals
+    lines = p.read_text().splitlines(keepends=True)
+    if damage == "rows":
+        p.write_text("".join(lines[:-3]))
+    elif damage == "bytes":
+        cut(p, len("".join(lines[:-1])) + len(lines[-1]) // 2)
+    elif damage == "300":
+        cut(p, 300)
+    elif damage == "text":
+        rows = pd.read_csv(p)
+        rows["p1_pred"] = "not a number"
+        rows.to_csv(p, index=False)
+    else:
+        p.unlink()
+    text = targets_markdown([sweep])
+    assert notes(text) == [f"- `0_0/predictions.csv` {why}: that run is left out of the targets."]
+    assert table_rows(text) == table_rows(targets_markdown([reference]))
+    assert table_rows(text)[("clean", 0.003, "p1")][-1] == str(N)  # the pairs of seed 1 alone
+
+
+def test_every_candidate_file_cut_leaves_the_names_not_an_empty_page(tmp_path):
+    sweep = make_sweep(tmp_path / "sweep")
+    for run in ("3_0", "3_1", "5_0", "5_1"):  # anchored_cross_segment, clean and gain
+        cut(sweep / run / "predictions.csv", 300)
+    text = targets_markdown([sweep])
+    assert text.startswith("No targets of the label-free anchored estimators") and not table_rows(text)
+    assert [line.split("`")[1] for line in notes(text)] == [
+        f"{r}/predictions.csv" for r in ("3_0", "3_1", "5_0", "5_1")
+    ]

@@ -11,6 +11,7 @@ those pairs, pooled over the seeds, with a fixed seed of its own: the same runs 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -18,9 +19,11 @@ import pandas as pd
 from hybrid_sysid.report.collect import load_predictions, load_runs
 from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.stats import CONFIDENCE, wilcoxon_p
+from hybrid_sysid.runs.layout import PREDICTIONS
 
 CANDIDATES = ("anchored_cross_segment", "anchored_label_free")  # the label-free anchored estimators
 CLASSICAL = ("ls", "eiv", "eiv_map")  # the fits without a network, fixes aside
+READ = (*CANDIDATES, *CLASSICAL, "eiv_fix")  # the estimators whose predictions the table pairs
 EXACT = 1e-4  # 0.01%: "exact" on clean consistent windows
 RESAMPLES = 2000
 
@@ -139,6 +142,43 @@ def _row(fault, goal: Goal, param, candidate, value, here) -> list[str] | None:
     ]
 
 
+def damaged_predictions(root: Path, df: pd.DataFrame, devs: pd.DataFrame) -> dict[str, str]:
+    """Run -> why its predictions.csv cannot be paired, for each completed run of the table's estimators whose
+    file is missing or unreadable, does not end its last line (cut within a row, whose numbers may be cut too), or
+    holds another count of test recordings at K = 1 than its record's ``n`` (cut by its last rows). ``devs``:
+    load_predictions at K = 1, with the runs' estimator."""
+    read = (df.status == "completed") & (df.split == "test") & (df.windows == 1) & df.estimator.isin(READ)
+    test = df[read.fillna(False).astype(bool) & df.n.notna()]
+    expected = test.groupby(["run", "noise_std"]).n.max()
+    found = devs.groupby(["run", "noise_std"]).recording.nunique()
+    damaged = {}
+    for run in dict.fromkeys(test.run):
+        path = root / run / PREDICTIONS
+        if not path.is_file():
+            damaged[run] = "is missing"
+        elif not _ends_its_last_line(path):
+            damaged[run] = "ends within a row (cut)"
+        elif run not in found.index.get_level_values("run"):
+            damaged[run] = "cannot be read, or holds no test rows at K = 1"
+        else:
+            for noise, n in expected[run].items():
+                k = found[run].get(noise, 0)
+                if k != n:
+                    damaged[run] = f"holds {k} test recordings at noise {noise:g} where its record counts {n}"
+                    break
+    return damaged
+
+
+def _ends_its_last_line(path: Path) -> bool:
+    """pandas ends every row of the file it writes with a newline: a file without one at its end was cut."""
+    try:
+        with path.open("rb") as f:
+            f.seek(-1, 2)
+            return f.read(1) == b"\n"
+    except OSError:  # empty, or unreadable: the count says the rest
+        return True
+
+
 def targets_markdown(paths) -> str:
     """The targets table of the sweeps at ``paths`` (an empty string when they hold no label-free anchored run
     beside the classical fits)."""
@@ -151,12 +191,22 @@ def targets_markdown(paths) -> str:
     for key in ("estimator", "fault", "seed"):
         default = "clean" if key == "fault" else ""
         devs[key] = devs.run.map(runs[key]) if key in runs else default
+    # a cut file would pair fewer recordings in silence (or a number cut short): the run is left out, and named
+    damaged = damaged_predictions(root, df, devs)
+    devs = devs[~devs.run.isin(list(damaged))]
+    notes = "".join(
+        f"- `{run}/{PREDICTIONS}` {why}: that run is left out of the targets.\n" for run, why in damaged.items()
+    )
     # a job copied under another number, or a row repeated, is one recording: the value and the pairs count it once
     devs = devs.drop_duplicates(["estimator", "fault", "seed", "noise_std", "parameter", "recording"])
     tables = {c: target_rows(devs, c) for c in CANDIDATES if (devs.estimator == c).any()}
     tables = {c: rows for c, rows in tables.items() if rows}
     if not tables:
-        return ""
+        return (
+            f"No targets of the label-free anchored estimators: the predictions they pair are damaged.\n\n{notes}"
+            if notes
+            else ""
+        )
     header = ["fault", "noise", "parameter", "value [%]", "reference", "its value [%]",
               f"ratio [{CONFIDENCE:.0%} interval]", "goal", "met", "Wilcoxon p", "recordings"]  # fmt: skip
     text = (
@@ -164,6 +214,7 @@ def targets_markdown(paths) -> str:
         "interval a paired bootstrap over recordings; p the Wilcoxon signed-rank test of the pairs; recordings: the "
         "pairs, or the candidate's recordings, over all seeds).\n\n"
     )
+    text += f"{notes}\n" if notes else ""
     for c, rows in tables.items():
         text += f"`estimator={c}`\n\n" + markdown_table(header, rows, n_left=3) + "\n\n"
     return text.rstrip() + "\n"
