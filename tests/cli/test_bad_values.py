@@ -14,6 +14,7 @@ CASES = [
     (["trainer.max_steps=abc"], {}, "trainer.max_steps"),
     (["paths.root=''"], {}, "paths.root"),
     ([], {"HYBRID_SYSID_CACHE": ""}, "paths.cache_dir"),
+    (["-m", "--cfg", "job"], {}, "the command line"),  # Hydra's own refusal of the pair, once a traceback
 ]
 
 

@@ -35,6 +35,9 @@ def composition_error(exc: BaseException) -> ConfigError | None:
             said = _words(lines[1]) + (f" (composing {where.group(1)})" if where else "")
             return ConfigError(full_key.group(1), allowed=said + _launcher_hint(full_key.group(1)))
         return ConfigError(_override_key(lines[0]) if lines else "the config", allowed=_words(" ".join(lines)))
+    if isinstance(exc, ValueError) and str(exc).startswith("Only one of --run, --multirun"):
+        # hybrid-sysid -m ... --cfg job: Hydra refuses the pair before composing, with a bare ValueError
+        return ConfigError("the command line", allowed=f"{_words(str(exc))} (drop -m to print the config)")
     return None
 
 
