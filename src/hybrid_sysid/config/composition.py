@@ -10,7 +10,7 @@ import re
 from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
 from omegaconf.errors import OmegaConfBaseException
 
-from hybrid_sysid.core.checks import NO_VALUE, ConfigError
+from hybrid_sysid.core.checks import NO_VALUE, ConfigError, Shown
 
 
 def composition_error(exc: BaseException) -> ConfigError | None:
@@ -35,10 +35,25 @@ def composition_error(exc: BaseException) -> ConfigError | None:
             said = _words(lines[1]) + (f" (composing {where.group(1)})" if where else "")
             return ConfigError(full_key.group(1), allowed=said + _launcher_hint(full_key.group(1)))
         return ConfigError(_override_key(lines[0]) if lines else "the config", allowed=_words(" ".join(lines)))
+    if isinstance(exc, ValueError) and str(exc).startswith("Config group override must be a string"):
+        # baseline=null: Hydra takes null as no option at all, before composing, and names no group
+        group = _null_group()
+        return ConfigError(group, Shown("null"), f"one of the group's options; ~{group} drops its choice")
     if isinstance(exc, ValueError) and str(exc).startswith("Only one of --run, --multirun"):
         # hybrid-sysid -m ... --cfg job: Hydra refuses the pair before composing, with a bare ValueError
         return ConfigError("the command line", allowed=f"{_words(str(exc))} (drop -m to print the config)")
     return None
+
+
+def _null_group() -> str:
+    """The group the command line set to null (``baseline=null``), from the arguments Hydra read."""
+    import sys
+
+    for arg in sys.argv[1:]:
+        key, _, value = arg.partition("=")
+        if value.strip().lower() in ("null", "none", "~") and "." not in key:
+            return key.lstrip("+")
+    return "a config group"
 
 
 def _missing_option(exc: MissingConfigException) -> ConfigError:
