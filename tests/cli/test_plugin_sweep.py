@@ -26,8 +26,7 @@ STEPS = 6
 SWEEP = [
     "-m",
     "objective=labelled,relative_l2",
-    "model=tiny_net",
-    "hydra.searchpath=[pkg://hybrid_sysid_example_plugin.conf]",
+    "model=tiny_net",  # the package's configs are options without hydra.searchpath (hybrid_sysid.configs)
     "data=tiny",
     "trainer=debug",
     f"trainer.max_steps={STEPS}",

@@ -6,13 +6,19 @@ a name no installed package declares is refused before anything is imported, and
 only when a config names it. An entry point's value is ``module:Class`` (or ``module.Class``); its class path,
 ``module.Class``, is what a ``_target_`` gives. A run records the entry point and package of each plugin class it
 was made with (``record_of``), so the run opened where that package is missing can say what to install.
+
+A package declares its configs in the group CONFIGS, the entry point's value naming the package that holds them
+(``mylab = "mylab.conf"``): ``searchpath`` gives them to Hydra (src/hydra_plugins/hybrid_sysid_configs), so a
+plugin's options are chosen like the project's own, without ``hydra.searchpath``.
 """
 
 from __future__ import annotations
 
 from importlib import import_module
 from importlib.metadata import EntryPoint, entry_points
+from pathlib import Path
 
+from hybrid_sysid.config.schema import CONF_DIR
 from hybrid_sysid.core.checks import ConfigError
 
 # config key -> the entry point group its plugin classes are declared in
@@ -20,7 +26,9 @@ GROUPS = {
     "model.net": "hybrid_sysid.networks",
     "objective": "hybrid_sysid.objectives",
     "baseline": "hybrid_sysid.baselines",
+    "data.module": "hybrid_sysid.datasets",
 }
+CONFIGS = "hybrid_sysid.configs"  # the entry point group whose values name packages of configs
 
 
 def class_path(ep: EntryPoint) -> str:
@@ -90,3 +98,33 @@ def missing(target: str, key: str, recorded: dict | None) -> str:
             f"{recorded['package']}{version}, not installed here: pip install {recorded['package']}"
         )
     return f"none declares it in the entry point group {GROUPS[key]} (docs/extending.md)"
+
+
+def config_packages() -> dict[str, str]:
+    """{package of configs: the name of the installed package that declares it} for each value of the group
+    CONFIGS that is a dotted module name. Reads metadata only: nothing is imported (Hydra imports the package
+    when it lists or reads its configs)."""
+    found = {}
+    for ep in entry_points(group=CONFIGS):
+        name = ep.value.strip()
+        if all(part.isidentifier() for part in name.split(".")):
+            found.setdefault(name, package_of(ep)[0] or ep.name)
+    return found
+
+
+def is_own(path: str) -> bool:
+    """Whether a Hydra search path element holds this package's own configs: its conf/ folder, or the package."""
+    if path == "pkg://hybrid_sysid.conf":
+        return True
+    if "://" in path and not path.startswith("file://"):
+        return False
+    return Path(path.removeprefix("file://")).resolve() == Path(CONF_DIR).resolve()
+
+
+def searchpath(paths: list[str]) -> list[tuple[str, str]]:
+    """(provider, ``pkg://<package>``) to append to a Hydra search path of ``paths``: each installed package's
+    configs (config_packages) when the search path holds this package's own, none for another Hydra app's, so
+    that app never sees hybrid-sysid's plugins."""
+    if not any(is_own(p) for p in paths):
+        return []
+    return [(f"hybrid-sysid plugin {who}", f"pkg://{name}") for name, who in config_packages().items()]

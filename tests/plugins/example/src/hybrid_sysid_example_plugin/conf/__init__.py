@@ -1,1 +1,1 @@
-# a package, so that hydra.searchpath=[pkg://hybrid_sysid_example_plugin.conf] finds the configs here
+# a package, so that Hydra finds the configs here (pkg://hybrid_sysid_example_plugin.conf, declared in pyproject.toml)
