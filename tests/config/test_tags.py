@@ -133,3 +133,20 @@ def test_a_run_saved_before_tags_existed_is_no_file_cut_short(tmp_path):
     assert merged.tags == [] and "tags" not in lacking(saved, merged)
     del saved["seed"]  # a key that was always there, missing: cut short
     assert "seed" in lacking(saved, OmegaConf.merge(OmegaConf.structured(Config), saved))
+
+
+def test_an_evaluation_keeps_the_trained_run_s_tags_or_takes_its_own(tmp_path, cli_in_process, tiny_cache, monkeypatch):
+    import hybrid_sysid.report.run_figures as run_figures
+    from hybrid_sysid.cli.evaluate import main
+
+    from helpers.estimator_run import trained_run
+
+    monkeypatch.setattr(run_figures, "write_run_figures", lambda run_dir: None)  # seconds, and not what is tested
+    tiny = ["data=tiny", "trainer=debug", "trainer.max_steps=2", f"data.cache_dir={tiny_cache}"]
+    run = trained_run(tmp_path / "run", [*tiny, "tags=[trained]"])
+    env = {"HYBRID_SYSID_CACHE": tiny_cache}
+    for name, extra, tags in (("kept", [], ["trained"]), ("own", ["tags=[soft_seat,check]"], ["soft_seat", "check"])):
+        args = [f"run={run}", "car=soft_seat", *extra, f"hydra.run.dir={tmp_path / name}"]
+        code, out, err = cli_in_process(main, *args, cwd=tmp_path, env=env)
+        assert code == 0, err[-2000:]
+        assert json.loads((tmp_path / name / "metrics.json").read_text())["tags"] == tags

@@ -36,8 +36,9 @@ FIXES = ("none", "gain", "skew", "hardening")  # the classical fix of a recordin
 # the Lightning classes a config may name by _target_ (hybrid_sysid.config.targets): loggers and callbacks
 LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
 CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")
-# hybrid-sysid-eval: the config sections an evaluation may change (the network and its training are the run's)
-EVAL_OVERRIDABLE = ("data", "car", "road", "noise", "sensor", "evaluation", "paths")
+# hybrid-sysid-eval: the config sections an evaluation may change (the network and its training are the run's);
+# tags label the evaluation's own record (without, it keeps the trained run's)
+EVAL_OVERRIDABLE = ("data", "car", "road", "noise", "sensor", "evaluation", "paths", "tags")
 # hybrid-sysid-report metric=: what a table's cells show, and its words
 METRICS = {"mean_rel_dev": "mean relative deviation", "std_rel_dev": "std of relative deviation"}
 # what one job of hybrid-sysid does (hybrid_sysid.cli.train): one run, a transfer chain, a tuned comparison
