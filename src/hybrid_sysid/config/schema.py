@@ -29,6 +29,7 @@ def _data_fields() -> list:
             if f.name not in OUTSIDE_DATA:
                 default = f.default if f.default is not NO_DEFAULT else MISSING
                 out.append((f.name, hints[f.name], field(default=default)))
+    out.append(("module", Optional[Dict[str, Any]], field(default=None)))  # a plugin's: targets.data_module
     recordings = [  # data=recordings: a user's files (data.recordings); null: the simulator's recordings
         ("path", Optional[str], field(default=None)),
         ("labels", Optional[str], field(default=None)),

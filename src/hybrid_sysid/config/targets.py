@@ -1,7 +1,7 @@
-"""The classes a config may name by ``_target_``: this package's networks, objectives and baselines (any class of
-hybrid_sysid.model or hybrid_sysid.baselines that provides what its key asks: model/base.py), the classes that
-installed packages declare as plugins (entry points: config/plugins.py, docs/extending.md), and a list of
-Lightning's loggers and callbacks. Nothing else is ever imported or called from a config.
+"""The classes a config may name by ``_target_``: this package's networks, objectives, baselines and data modules
+(any class of hybrid_sysid.model, .baselines or .data that provides what its key asks: model/base.py), the
+classes that installed packages declare as plugins (entry points: config/plugins.py, docs/extending.md), and a
+list of Lightning's loggers and callbacks. Nothing else is ever imported or called from a config.
 
 A run directory is data a user may have received from someone else (its .hydra/config.yaml is read by
 hybrid-sysid-eval, hybrid-sysid-predict, load_estimator, init_from and resume=), so a ``_target_`` is checked by
@@ -25,14 +25,17 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import plugins
 from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.core.options import CALLBACKS, LOGGERS, MONITORS
-from hybrid_sysid.model.base import Baseline, Network, Objective, lacks
+from hybrid_sysid.model.base import Baseline, DataModule, Network, Objective, lacks
 
 # config key -> (the package whose classes it may name, what such a class must provide)
 OWN = {
     "model.net": ("hybrid_sysid.model", Network),
     "objective": ("hybrid_sysid.model", Objective),
     "baseline": ("hybrid_sysid.baselines", Baseline),
+    "data.module": ("hybrid_sysid.data", DataModule),
 }
+# config key -> the members of its protocol an object sets in its constructor: checked on the object once built
+ON_INSTANCE = {"data.module": ("window", "dataset")}
 # config key -> {the _target_ of a library's class a config may give: (module, class name)}
 LIBRARY: dict[str, dict[str, tuple[str, str]]] = {
     "logger": {f"lightning.pytorch.loggers.{n}": ("lightning.pytorch.loggers", n) for n in LOGGERS},
@@ -106,7 +109,7 @@ def known_class(target, key: str) -> type:
         if not (inspect.isclass(cls) and cls.__module__.startswith(package + ".")):
             bad(f"{key}._target_", target, f"a class of {package} (there is none of that name)")
         source = f"{interface.__name__}, model/base.py"
-    missing = lacks(cls, interface)
+    missing = [m for m in lacks(cls, interface) if m not in ON_INSTANCE.get(family, ())]
     if missing:
         bad(f"{key}._target_", target, f"a class with {', '.join(missing)} ({source})")
     return cls
@@ -114,9 +117,10 @@ def known_class(target, key: str) -> type:
 
 def built_classes(cfg: DictConfig) -> dict[str, str]:
     """Config key -> the ``_target_`` a run of ``cfg`` builds: its baseline's, else its network's and objective's
-    (a baseline run keeps the unused default objective)."""
+    (a baseline run keeps the unused default objective), and its data module's when data.module names one."""
     baseline = OmegaConf.select(cfg, "baseline", default=None, throw_on_resolution_failure=False)
     keys = ("baseline",) if baseline is not None else ("model.net", "objective")
+    keys += ("data.module",)
     found = {}
     for key in keys:
         try:
@@ -168,9 +172,15 @@ def build(node, key: str, **extra):
     kwargs = {**kwargs, **extra}
     _check_arguments(cls, kwargs, key)
     try:
-        return cls(**kwargs)
+        built = cls(**kwargs)
     except ConfigError as exc:
         raise exc.under(key) from None
+    family = _family(key)
+    missing = lacks(built, OWN[family][1]) if family in ON_INSTANCE else []
+    if missing:
+        what = f"a class whose objects have {', '.join(missing)} ({OWN[family][1].__name__}, model/base.py)"
+        bad(f"{key}._target_", node.get("_target_"), what)
+    return built
 
 
 def _check_arguments(cls: type, kwargs: dict, key: str) -> None:
@@ -215,3 +225,35 @@ def check_objective_members(objective, key: str) -> None:
             bad(f"{key}.{name}", taps, "None, or the band-pass's taps: finite numbers (Objective, model/base.py)")
     if objective.monitor not in MONITORS[1:]:
         bad(f"{key}.monitor", objective.monitor, f"one of {', '.join(MONITORS[1:])} (Objective, model/base.py)")
+
+
+def data_module(cfg: DictConfig, objective=None):
+    """The data module ``data.module`` describes (a plugin's, say: docs/extending.md), built from its own arguments,
+    which interpolate the run's values (``${data.window}``, ``${seed}``); None when it is null, the simulator's. Its
+    constructor loads nothing, so the checks before any work build it too. ConfigError naming the key: a class
+    that may not be named or lacks a member of DataModule (model/base.py), a constructor that refuses its arguments,
+    a window other than data.window, a baseline run (a baseline reads the simulator's whole recordings), data.path
+    set too, or an objective (``objective``, else the config's) that reads band-passed signals or an outside fit,
+    which such batches do not carry."""
+    key = "data.module"
+    node = OmegaConf.select(cfg, key)
+    if node is None:
+        return None
+    if cfg.get("baseline") is not None:
+        bad(f"{key}._target_", node.get("_target_"), "none with baseline= (a baseline reads the simulated recordings)")
+    if cfg.data.get("path") is not None:
+        bad(f"{key}._target_", node.get("_target_"), "none with data.path (data=recordings reads its files itself)")
+    objective = build(cfg.objective, "objective") if objective is None else objective
+    for member, what in (("fir", "band-passed signals"), ("outside_fir", "fit over each window's outside samples")):
+        if getattr(objective, member, None) is not None:
+            why = f"an objective without {member}: the batches of {key} carry no {what}"
+            bad("objective._target_", cfg.objective.get("_target_"), why)
+    try:
+        dm = build(node, key)
+    except ConfigError:
+        raise
+    except Exception as exc:  # noqa: BLE001 - a plugin's constructor may raise anything: one line names it
+        raise ConfigError(key, allowed=f"{type(exc).__name__}: {' '.join(str(exc).split())}") from exc
+    if dm.window != cfg.data.window:
+        bad(f"{key}.window", dm.window, f"data.window = {cfg.data.window}, the window the network is checked on")
+    return dm

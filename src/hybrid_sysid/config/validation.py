@@ -20,7 +20,7 @@ from hybrid_sysid.config.memory import check_memory
 from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.config.schema import SECTIONS
 from hybrid_sysid.config.tags import check_tags
-from hybrid_sysid.config.targets import arguments, build, check_objective_members, check_target
+from hybrid_sysid.config.targets import arguments, build, check_objective_members, check_target, data_module
 from hybrid_sysid.config.trainer import check_trainer, check_trainer_arguments
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.install import install_command
@@ -94,6 +94,7 @@ def validate(cfg: DictConfig, training: bool = True) -> None:
         _validate_training(cfg, spec)
         if training:  # Lightning's own checks of the trainer's arguments, trainer.extra's too
             check_trainer_arguments(cfg.trainer)
+    data_module(cfg)  # data.module's, when set: built, and checked against the run's objective or baseline
     check_eval_windows(cfg.evaluation.windows, WindowSettings.from_config(cfg).n_starts(spec), "evaluation.windows")
 
 
@@ -129,7 +130,7 @@ def _check_noise(cfg: DictConfig) -> None:
 def _check_steps(cfg: DictConfig) -> None:
     """A network's, objective's or baseline's ``dt`` (``${data.dt}`` in every preset) is the recordings' step: any
     other would read them at a step they were not sampled at (model.net.dt=0.01 on 0.005 s data: 50% off)."""
-    for section in ("model.net", "objective", "baseline"):
+    for section in ("model.net", "objective", "baseline", "data.module"):
         node = OmegaConf.select(cfg, section)
         step = node.get("dt") if isinstance(node, DictConfig) else None
         if step is not None and step != cfg.data.dt:

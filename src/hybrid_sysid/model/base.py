@@ -1,4 +1,4 @@
-"""What the rest of the package asks of a network, an objective and a baseline, declared here once.
+"""What the rest of the package asks of a network, an objective, a baseline and a data module, declared here once.
 
 Each is a Protocol: a class meets it by having the members, without inheriting anything, so a class of one's own
 (a researcher's network, say) needs no import of this package's classes. ``lacks(cls, protocol)`` names the
@@ -70,6 +70,37 @@ class Baseline(SplitPredictor, Protocol):
     def estimate(self, seat, body, dt: float, measurement: str, window: int, windows: int) -> np.ndarray:
         """(K, 2) estimates of one recording (float64 arrays in m/s^2 at the step ``dt``): per window, at
         ``windows`` = K evenly spaced starts, or one estimate of the whole recording."""
+
+
+class DataModule(Protocol):
+    """A LightningDataModule of recordings with their true p, cut into windows: data.module's class (a plugin's,
+    docs/extending.md). Its batches are dicts of tensors: "signals" (B, 2, W) float32, seat z'' and body y'' in
+    m/s^2, "params" (B, 2) the true p, and what the objective reads (Objective: "rel_vel" and "rel_disp" for the
+    hybrid objectives). Its constructor loads nothing (the checks before any work build it): ``setup`` does."""
+
+    window: int  # W, the steps of a window: data.window, the length the network is checked on
+    # after setup, the recordings ``rows`` index: road_class (n,) a label per recording (the table per class), m3
+    # (n,) the seat mass in kg, and spec with dt in s and measurement (physics.eiv.eiv_model's: the Cramér-Rao bound)
+    dataset: object
+
+    def setup(self, stage: str | None = None) -> None: ...
+
+    def train_dataloader(self):
+        """Training batches, as many as trainer.max_steps takes (an endless stream, say)."""
+
+    def val_dataloader(self):
+        """The validation windows' batches, which model selection reads (val/loss, val/rel_dev)."""
+
+    def rows(self, split: str) -> np.ndarray:
+        """The recordings of ``split`` (train, val or test): indices into ``dataset``'s arrays, in the order of
+        the split's fixed windows."""
+
+    def eval_batch(self, split: str, noise_std: float = 0.0, limit: int | None = None, windows: int = 1) -> dict:
+        """A batch of the split's fixed, seeded windows (of its first ``limit`` recordings) with Gaussian noise of
+        std ``noise_std`` on both channels; ``windows`` = K per recording, row i * K + j window j of recording i."""
+
+    def eval_dataloader(self, split: str, noise_std: float = 0.0, limit: int | None = None, windows: int = 1):
+        """The batches of eval_batch's windows, in its order."""
 
 
 def members(protocol: type) -> list[str]:

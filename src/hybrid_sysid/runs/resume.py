@@ -42,6 +42,7 @@ ADDED = {
     "tags": [],
     "data.path": None,
     "data.labels": None,
+    "data.module": None,
 }
 
 

@@ -10,7 +10,7 @@ import lightning as L
 import torch
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config.targets import arguments, build
+from hybrid_sysid.config.targets import arguments, build, data_module
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.spec import DatasetSpec
@@ -32,6 +32,8 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
     else built from the config (none for a baseline)."""
     if objective is None and cfg.get("baseline") is None:
         objective = build_objective(cfg)
+    if cfg.data.get("module") is not None:  # a data module of its own class (a plugin's: docs/extending.md)
+        return data_module(cfg, objective)
     d = cfg.data
     return QuarterCarDataModule(
         DatasetSpec.from_config(cfg),
