@@ -71,11 +71,14 @@ class QuarterCarDataModule(L.LightningDataModule):
         self._eval_cache: dict = {}
 
     def prepare_data(self) -> None:
-        self._get_dataset()  # simulate and cache once
+        # simulate and cache once; kept, so setup (before fit or after it) does not read the cache again
+        if self.dataset is None:
+            self.dataset = self._get_dataset()
 
     def setup(self, stage: str | None = None) -> None:
         if self.data is None:
-            self.dataset = self._get_dataset()
+            if self.dataset is None:  # a DDP rank other than 0 (prepare_data ran elsewhere), or no fit
+                self.dataset = self._get_dataset()
             self.data = WindowCutter(
                 self.dataset, self.window, self.integration, self.fir, self.outside_fir, self.outside_target
             )
