@@ -156,7 +156,7 @@ def test_a_report_counts_a_metrics_json_nested_deep_as_unreadable(tiny_run, tmp_
     shutil.copytree(tiny_run, run)
     (run / "metrics.json").write_text("[" * 100_000 + "]" * 100_000)
     assert main([str(run), f"out={tmp_path / 'out'}"]) == 1
-    assert "1 runs, 1 failed or unreadable" in capsys.readouterr().err
+    assert "1 run, 1 failed or unreadable" in capsys.readouterr().err
 
 
 def test_a_run_and_its_report_in_a_non_ascii_directory_under_an_ascii_locale(tmp_path, tiny_cache):

@@ -60,7 +60,7 @@ def test_a_runs_damaged_curves_predictions_and_figures_are_skipped_and_the_run_r
     for name, run in runs.items():
         assert main([run, f"out={tmp_path / name / 'report'}"]) == 0
         out, err = capsys.readouterr()
-        assert "Traceback" not in err and "1 runs, 0 failed or unreadable" in err
+        assert "Traceback" not in err and "1 run, 0 failed or unreadable" in err
         tables[name] = (out, pd.read_csv(tmp_path / name / "report" / "summary.csv"))
     # the run is reported from its record, as the undamaged copy is
     assert tables["damaged"][0] == tables["whole"][0]

@@ -19,6 +19,7 @@ from hybrid_sysid.cli.arguments import Key, UsageError, parse
 from hybrid_sysid.cli.console import tolerant_streams
 from hybrid_sysid.core.checks import Shown
 from hybrid_sysid.core.stop import Interrupted
+from hybrid_sysid.core.words import count
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.report.collect import find_runs, load_runs
 from hybrid_sysid.report.markdown import to_markdown
@@ -184,7 +185,7 @@ def _main(argv) -> int:
             runs = df.drop_duplicates("run")
             bad = int((runs.status != "completed").sum())
             print(
-                f"{len(runs)} runs, {bad} failed or unreadable; wrote {out}/{', '.join(written)}, figures/",
+                f"{count(len(runs), 'run')}, {bad} failed or unreadable; wrote {out}/{', '.join(written)}, figures/",
                 file=sys.stderr,
             )
         if args.results is not None:
@@ -204,12 +205,12 @@ def _main(argv) -> int:
             bad = max(bad, n_bad)
             folder = args.results.parent if args.results.suffix == ".md" else args.results
             print(
-                f"{n} runs, {n_bad} failed or unreadable; wrote {args.results} and {folder / 'figures'}/",
+                f"{count(n, 'run')}, {n_bad} failed or unreadable; wrote {args.results} and {folder / 'figures'}/",
                 file=sys.stderr,
             )
         if args.run_figures:
             drawn = draw_run_figures(args.paths, args.exclude)
-            print(f"drew the figures of {drawn} runs (figures/ in each run directory)", file=sys.stderr)
+            print(f"drew the figures of {count(drawn, 'run')} (figures/ in each run directory)", file=sys.stderr)
     except ValueError as exc:  # e.g. compare= naming a key that is not swept
         return _error(str(exc))
     except OSError as exc:  # e.g. out= on a read-only file system: the runs themselves are untouched

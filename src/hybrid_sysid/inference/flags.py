@@ -23,6 +23,7 @@ import numpy as np
 from omegaconf import DictConfig
 
 from hybrid_sysid.config.resolvers import p_prior
+from hybrid_sysid.core.words import count
 from hybrid_sysid.data.dataset import generate_dataset
 from hybrid_sysid.data.spec import DatasetSpec
 from hybrid_sysid.physics import QuarterCar
@@ -193,7 +194,8 @@ def names_of(names: list, mask: np.ndarray) -> str:
 
 
 def range_warning(mask: np.ndarray, names: list, trained: TrainedRange) -> str:
-    head = f"{int(mask.sum())} of {len(mask)} recordings ({names_of(names, mask)}) have an estimate"
+    k = int(mask.sum())
+    head = f"{k} of {count(len(mask), 'recording')} ({names_of(names, mask)}) {'has' if k == 1 else 'have'} an estimate"
     if not trained.network:
         return (
             f"{head} more than {RANGE_RTOL:.0%} outside the trained range ({trained.describe()}) where the run was "
@@ -213,9 +215,11 @@ def range_warning(mask: np.ndarray, names: list, trained: TrainedRange) -> str:
 
 def channels_warning(mask: np.ndarray, names: list, reference: ChannelReference) -> str:
     lo, hi = reference.band
+    k = int(mask.sum())
     return (
-        f"{int(mask.sum())} of {len(mask)} recordings ({names_of(names, mask)}) have channel powers unlike the "
-        f"run's training recordings (the seat-to-body power ratio at the seat resonance, {lo:.3g} to {hi:.3g} Hz, "
+        f"{k} of {count(len(mask), 'recording')} ({names_of(names, mask)}) {'has' if k == 1 else 'have'} channel "
+        f"powers unlike the run's training recordings (the seat-to-body power ratio at the seat resonance, "
+        f"{lo:.3g} to {hi:.3g} Hz, "
         f"more than {RATIO_FACTOR:g}x, or the body acceleration's power more than {LEVEL_FACTOR:g}x beyond the "
         f"range of recordings simulated from the run's data spec): seat_acc and body_acc swapped, or a channel "
         f"not in m/s^2? (flag {CHANNELS})"
@@ -224,9 +228,10 @@ def channels_warning(mask: np.ndarray, names: list, reference: ChannelReference)
 
 def run_error_warning(error: float | None, k: int | None, values: dict, n: int) -> str:
     if error is None:
+        on = f"{'the' if n == 1 else 'all'} {count(n, 'recording')}"
         return (
             f"about the run, not these recordings: the run's own test error is unknown (no readable metrics.json "
-            f"with clean test results), so its estimates are unchecked (flag {RUN_ERROR} on all {n} recordings)"
+            f"with clean test results), so its estimates are unchecked (flag {RUN_ERROR} on {on})"
         )
     each = ", ".join(f"{p} {v:.1%}" for p, v in sorted(values.items()))
     return (
