@@ -28,37 +28,56 @@ def test_a_sweep_prints_a_line_per_job_and_its_table(tiny_sweep):
     assert [d[:8] for d in done] == ["[1/4] #0", "[2/4] #1", "[3/4] #2", "[4/4] #3"], said
     # an estimate of the time left until the last
     assert all("left" in d for d in done[:-1]) and "left" not in done[-1]
-    assert "mean relative deviation on the test split" in said and "| hybrid " in said  # the sweep's table
+    assert "mean relative deviation on the test split" in said and "\nhybrid " in said  # the sweep's table
     for noise in ("litlogger", "Seed set", "GPU available", "per road class", "LeafSpec", "INFO: "):
         assert noise not in said, noise  # no advert, Lightning's INFO and the runs' own tables in the log files
     assert not BAR.search(said)
-    # under 20 lines for 2 jobs of one table row; each further job adds 2 (Hydra's line and its own), each
-    # further row 1
-    assert len(lines) < 20 + 2 * 2 + 1, said
+    # 4 jobs of 2 table rows in under 40 lines: 2 at the start, Hydra's 1 and 2 a job (Hydra's and its own),
+    # the table's 2 blocks of 5 lines (one per parameter) and its notes; each further job adds 2, each row 2
+    assert len(lines) < 40, said
+    repeated = [ln for ln in set(lines) if re.search(r"\w", ln) and lines.count(ln) > 1]
+    assert not repeated, repeated  # no line said twice (a block's rule of dashes aside)
 
 
-def test_a_sweep_job_logs_everything_once_into_its_own_file(tiny_sweep):
-    _, sweep_dir = tiny_sweep
-    log = (sweep_dir / "0" / "train.log").read_text()
-    assert log.count("Seed set to 0") == 1 and log.count("GPU available") == 1  # once: no duplicate handler
-    assert "per road class" in log and "litlogger" not in log
-    assert json.loads((sweep_dir / ".progress").read_text().splitlines()[0])["jobs"] == 4
+def test_a_sweeps_table_fits_100_columns_and_holds_every_cell_of_summary_md(tiny_sweep):
+    """The full table (summary.md) runs wider than a terminal; the console shows the same cells in blocks."""
+    from helpers.evaluation_fakes import parse_markdown
+
+    proc, sweep_dir = tiny_sweep
+    table = proc.stdout[proc.stdout.index("mean relative deviation on the test split") :]
+    assert max(len(line) for line in table.splitlines()) <= 100, table
+    rows = parse_markdown((sweep_dir / "summary.md").read_text())
+    assert len(rows) == 3  # hybrid, labelled and the Cramér-Rao bound
+    for row in rows:
+        for header, cell in row.items():
+            if header != "objective":
+                # the cell on its own row's line, in the block whose header names its column
+                block = next(b for b in table.split("\n\n") if "---" in b and header in b.splitlines()[0])
+                lines = [ln for ln in block.splitlines() if ln.startswith(row["objective"])]
+                assert any(cell in ln for ln in lines), (row["objective"], header, cell, block)
 
 
 @started_early
 def single_run(tmp, env, tiny_cache):
     """A new process: progress_bar=auto asks the real stdout whether it is a terminal, and everything the process
-    prints (Lightning's messages, an import's warnings) is what is tested."""
-    return run_app(tmp, *TINY, f"hydra.run.dir={tmp / 'run'}", cache=tiny_cache, env=env)
+    prints (Lightning's messages, an import's warnings) is what is tested. (its process, its run directory)"""
+    return run_app(tmp, *TINY, f"hydra.run.dir={tmp / 'run'}", cache=tiny_cache, env=env), tmp / "run"
 
 
 def test_a_single_run_into_a_file_prints_its_table_without_a_progress_bar(single_run):
-    proc = single_run
+    proc, _ = single_run
     assert proc.returncode == 0, proc.stderr[-2000:]
     said = proc.stdout + proc.stderr
     assert "p1 mean rel. dev. [%]" in said and "per road class" in said  # a single run prints its result
     assert not BAR.search(said) and "litlogger" not in said and "Seed set" not in said
     assert len(said) < 3000
+    assert max(len(ln) for ln in said.splitlines() if not ln.startswith("[")) <= 100  # its tables, not log lines
+
+
+def test_a_single_run_logs_each_message_once(single_run):
+    log = (single_run[1] / "train.log").read_text()
+    messages = [re.sub(r"^\[[^]]*\]", "", ln) for ln in log.splitlines() if ln.startswith("[")]
+    assert len(messages) == len(set(messages)) and "loaded cached dataset" in log, log
 
 
 def test_progress_bar_auto_draws_only_on_a_terminal(monkeypatch, make_cfg):
@@ -92,6 +111,25 @@ def test_the_console_filter_keeps_a_sweeps_jobs_quiet():
         assert shown(sweep, "hybrid_sysid.data.cache", logging.INFO, "simulating %d roads")
         assert shown(sweep, "hybrid_sysid", logging.INFO, "run %s already completed; not running it again")
     assert shown(sweep, "hybrid_sysid", logging.INFO, "search: best trial %d")  # the sweep's own, not a job's
+
+
+def test_the_console_counts_in_the_singular_and_plural():
+    from omegaconf import OmegaConf
+
+    from hybrid_sysid.cli.progress import start_line
+    from hybrid_sysid.core.words import count
+
+    assert [count(n, "job") for n in (0, 1, 2)] == ["0 jobs", "1 job", "2 jobs"]
+    assert count(1, "directory", "directories") == "1 directory" and count(3, "directory", "directories")[2:] == (
+        "directories"
+    )
+    basic = "hydra._internal.core_plugins.basic_launcher.BasicLauncher"
+    for jobs, threads, said in (
+        (1, 1, "1 job, 1 at a time, 1 torch thread each"),
+        (3, 2, "3 jobs, 1 at a time, 2 torch threads each"),
+    ):
+        config = OmegaConf.create({"hydra": {"launcher": {"_target_": basic}}, "trainer": {"threads": threads}})
+        assert start_line(config, jobs, "sw").startswith(f"sweep: {said} into sw\n")
 
 
 def test_a_job_line_estimates_the_time_left():

@@ -1,76 +1,147 @@
 """A sweep's console: a line at its start (how many jobs, how many at a time), then one line per finished job: its
 number of the total, its swept values, its headline error (test split, the lowest noise level and K, p1 and p2),
-its time, the sweep's elapsed time and an estimate of the time left (elapsed / done x remaining). The jobs count
-themselves in the sweep directory's ``.progress`` (runs.layout.PROGRESS), one lock at a time, since parallel
-workers print their own lines."""
+its time, the sweep's elapsed time and an estimate of the time left (hybrid_sysid.cli.time_left). The jobs write
+their starts and ends to the sweep directory's ``.progress`` (runs.layout.PROGRESS), one lock at a time, since
+parallel workers print their own lines: a JSON header, then one JSON line per event."""
 
 from __future__ import annotations
 
 import fcntl
+import itertools
 import json
 import math
+import os
 import time
 from pathlib import Path
 from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.cli.time_left import estimate
+from hybrid_sysid.core.words import count
+
+MAX_KINDS = 100_000  # jobs: a longer sweep's header names no kinds (its estimate then treats jobs alike)
+
+
+def _swept_values(config: DictConfig) -> dict[str, list[str]] | None:
+    """key -> its values, in the order Hydra's basic sweeper takes them (hydra.sweeper.params, then the command
+    line; a later value of a key replaces an earlier one), so that the product's i-th item is job i; None where it
+    cannot be told (a glob over a config group)."""
+    params = config.hydra.sweeper.get("params")
+    params = OmegaConf.to_container(params) if isinstance(params, DictConfig) else dict(params or {})
+    try:
+        from hydra.core.override_parser.overrides_parser import OverridesParser
+
+        given = [f"{k}={v}" for k, v in params.items()] + list(config.hydra.overrides.task)
+        values = {}
+        for override in OverridesParser.create().parse_overrides(given):
+            key = override.get_key_element()
+            sweep = override.is_sweep_override()
+            values[key] = list(override.sweep_string_iterator()) if sweep else [override.get_value_element_as_str()]
+    except Exception:  # noqa: BLE001 - e.g. a glob over a config group: no count, the lines say so
+        return None
+    return values
+
 
 def sweep_jobs(config: DictConfig) -> tuple[int | None, list[str]]:
     """The number of jobs of the sweep (None where it cannot be told) and the keys it sweeps: a search's
     n_trials and parameters, else the product of the command line's and hydra.sweeper.params' value lists."""
     sweeper = config.hydra.sweeper
-    params = sweeper.get("params")
-    params = OmegaConf.to_container(params) if isinstance(params, DictConfig) else dict(params or {})
     if sweeper.get("n_trials") is not None:  # a search (conf/hydra/sweeper/study.yaml)
-        return int(sweeper.n_trials), list(params)
-    try:
-        from hydra.core.override_parser.overrides_parser import OverridesParser
-
-        given = [f"{k}={v}" for k, v in params.items()] + list(config.hydra.overrides.task)
-        sizes = {}
-        for override in OverridesParser.create().parse_overrides(given):
-            key = override.get_key_element()
-            sizes[key] = len(list(override.sweep_string_iterator())) if override.is_sweep_override() else 1
-    except Exception:  # noqa: BLE001 - e.g. a glob over a config group: no count, the lines say so
+        params = sweeper.get("params")
+        return int(sweeper.n_trials), list(OmegaConf.to_container(params) if params is not None else {})
+    values = _swept_values(config)
+    if values is None:
         return None, []
-    return math.prod(sizes.values()), [k for k, n in sizes.items() if n > 1]
+    return math.prod(len(v) for v in values.values()), [k for k, v in values.items() if len(v) > 1]
+
+
+def job_kinds(config: DictConfig) -> list[str] | None:
+    """Each job's kind, by job number: its swept values but the seed (jobs of a kind take about as long); None for
+    a search, whose trials are drawn as it goes."""
+    if config.hydra.sweeper.get("n_trials") is not None:
+        return None
+    values = _swept_values(config)
+    if values is None or math.prod(len(v) for v in values.values()) > MAX_KINDS:
+        return None
+    kinds = [i for i, (k, v) in enumerate(values.items()) if len(v) > 1 and k != "seed"]
+    keys = list(values)
+    return [" ".join(f"{keys[i]}={job[i]}" for i in kinds) for job in itertools.product(*values.values())]
+
+
+def at_once(config: DictConfig, jobs: int | None = None) -> int | None:
+    """How many jobs the launcher runs at a time: joblib's n_jobs (negative: counted back from the cores, as
+    joblib does), 1 for the basic launcher; None where the launcher does not say (SLURM, submitit_local)."""
+    launcher = config.hydra.launcher
+    target = str(launcher.get("_target_", ""))
+    if "joblib" in target:
+        n = launcher.get("n_jobs")
+        if not isinstance(n, int) or n == 0:
+            return None
+        n = n if n > 0 else max((os.cpu_count() or 1) + 1 + n, 1)
+    elif "BasicLauncher" in target:
+        n = 1
+    else:
+        return None
+    return min(n, jobs) if jobs else n
 
 
 def start_line(config: DictConfig, jobs: int | None, sweep_dir: Path) -> str:
-    """The sweep's first line: so the console is never silent while the first jobs train."""
-    launcher = config.hydra.launcher
-    at_once = launcher.get("n_jobs") if "joblib" in str(launcher.get("_target_", "")) else None
-    if at_once is None and "BasicLauncher" in str(launcher.get("_target_", "")):
-        at_once = 1
+    """The sweep's first lines: so the console is never silent while the first jobs train."""
+    n = at_once(config)
     threads = OmegaConf.select(config, "trainer.threads")
-    parts = [f"{jobs} jobs" if jobs else "jobs"]
-    if at_once:
-        parts.append(f"{at_once} at a time")
+    parts = [count(jobs, "job") if jobs else "jobs"]
+    if n:
+        parts.append(f"{n} at a time")
     if threads:
-        parts.append(f"{threads} torch thread{'s' * (threads != 1)} each")
+        parts.append(f"{count(threads, 'torch thread')} each")
     return (
-        f"sweep: {', '.join(parts)} into {sweep_dir}; a line as each job ends (its messages: train.log in its "
-        "directory), then the table"
+        f"sweep: {', '.join(parts)} into {sweep_dir}\n"
+        "a line as each job ends (its messages: train.log in its directory), then the table"
     )
 
 
-def count_done(path: Path, num) -> tuple[dict, int]:
-    """Append job ``num`` to the progress file and return its header and how many jobs have ended (one lock:
-    parallel workers count in turn)."""
-    with open(path, "a+", encoding="utf-8") as f:
+def header_of(config: DictConfig, start: float) -> dict:
+    """The progress file's first line: what the job lines and the time-left estimate need from the sweep."""
+    jobs, swept = sweep_jobs(config)
+    return {"jobs": jobs, "swept": swept, "start": start, "at_once": at_once(config, jobs), "kinds": job_kinds(config)}
+
+
+def _append(path: Path, entry) -> list[str]:
+    """Append one line and return all the file's lines (one lock: parallel workers write in turn). A missing file
+    (a sweep started elsewhere) stays missing: its first line would not be a header."""
+    with open(path, "r+", encoding="utf-8") as f:
         fcntl.flock(f, fcntl.LOCK_EX)
         try:
-            f.write(f"{num}\n")
+            f.seek(0, os.SEEK_END)
+            f.write(json.dumps(entry) + "\n")
             f.flush()
             f.seek(0)
-            lines = f.read().splitlines()
+            return f.read().splitlines()
         finally:
             fcntl.flock(f, fcntl.LOCK_UN)
+
+
+def mark_start(path: Path, num, now: float, pid: int | None = None) -> None:
+    """Job ``num`` started at ``now`` in process ``pid``: the estimate counts what it still needs, not a job's whole
+    time."""
+    _append(path, {"start": num, "t": now, "pid": pid})
+
+
+def count_done(path: Path, num, entry: dict | None = None) -> tuple[dict, int]:
+    """Append the end of job ``num`` (``entry``: its time, whether its worker was cold, its work; see time_left)
+    to the progress file and return its header, with the file's events under "events", and how many jobs have
+    ended."""
+    lines = _append(path, {**(entry or {}), "end": num})
     header = json.loads(lines[0])
     if not isinstance(header, dict):
         raise ValueError(f"{path} has no header")
-    return header, len(set(lines[1:]))
+    events = []
+    for line in lines[1:]:
+        event = json.loads(line)
+        events.append(event if isinstance(event, dict) else {"end": event})  # a bare number: an older file
+    header["events"] = events
+    return header, len({e["end"] for e in events if "end" in e})
 
 
 def _clock(seconds: float) -> str:
@@ -86,14 +157,40 @@ def _short(value: str) -> str:
     return f"{number:.3g}" if len(value) > 8 else value
 
 
-def job_line(header: dict, done: int, num, job_return: Any, seconds: float) -> str:
+def left_text(header: dict, done: int, now: float) -> str:
+    """The job line's end: ", about m:ss left", with how many jobs it guesses for (of a kind none of whose jobs
+    ended yet); elapsed / done x remaining where no job's time is known (an older progress file)."""
+    jobs = header.get("jobs")
+    if not jobs or done >= jobs:
+        return ""
+    guess = estimate(header, header.get("events") or [], now)
+    if guess is None:
+        elapsed = now - float(header.get("start", now))
+        return f", about {_clock(elapsed / done * (jobs - done))} left"
+    seconds, untimed = guess
+    if not untimed:
+        return f", about {_clock(seconds)} left"
+    kinds = "a kind" if untimed == 1 else "kinds"
+    return f", about {_clock(seconds)} left ({count(untimed, 'job')} of {kinds} not timed yet)"
+
+
+def record_of(job_return: Any):
+    """A job's return value: its record, or the exception of a job that raised (Hydra's JobReturn raises it)."""
+    try:
+        return getattr(job_return, "return_value", None)
+    except Exception as exc:  # noqa: BLE001 - the line says how the job failed
+        return exc
+
+
+def job_line(header: dict, done: int, num, job_return: Any, seconds: float, now: float | None = None) -> str:
     """``[done/jobs] #num key=value ...: p1 .. %, p2 .. % (test, noise .., K=..) in .. s; sweep m:ss, about m:ss
-    left``; a failed or interrupted job says so with its error."""
+    left``; a failed or interrupted job says so with its error. ``now``: the clock (time.time())."""
+    now = time.time() if now is None else now
     jobs = header.get("jobs")
     overrides = dict(o.split("=", 1) for o in (getattr(job_return, "overrides", None) or []) if "=" in o)
     swept = header.get("swept") or [k for k in ("objective", "seed") if k in overrides]
     which = " ".join(f"{k}={_short(overrides[k])}" for k in swept if k in overrides)
-    record = getattr(job_return, "return_value", None)
+    record = record_of(job_return)
     if isinstance(record, BaseException):
         outcome = f"failed ({type(record).__name__}: {record})"
     elif not isinstance(record, dict):
@@ -102,13 +199,11 @@ def job_line(header: dict, done: int, num, job_return: Any, seconds: float) -> s
         outcome = f"{record['status']} ({record.get('error') or 'no error recorded'})"
     else:
         outcome = headline(record.get("results")) or "completed"
-    elapsed = time.time() - float(header.get("start", time.time()))
-    count = f"{done}/{jobs}" if jobs else str(done)
-    left = ""
-    if jobs and done < jobs:
-        left = f", about {_clock(elapsed / done * (jobs - done))} left"
+    elapsed = now - float(header.get("start", now))
+    count_ = f"{done}/{jobs}" if jobs else str(done)
     outcome = outcome.splitlines()[0][:160]
-    return f"[{count}] #{num} {which}: {outcome} in {seconds:.0f} s; sweep {_clock(elapsed)}{left}"
+    left = left_text(header, done, now)
+    return f"[{count_}] #{num} {which}: {outcome} in {seconds:.0f} s; sweep {_clock(elapsed)}{left}"
 
 
 def headline(results) -> str | None:

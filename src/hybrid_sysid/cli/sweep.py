@@ -18,6 +18,7 @@ from __future__ import annotations
 import importlib
 import json
 import logging
+import os
 import threading
 import time
 from pathlib import Path
@@ -28,7 +29,9 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid.cli.process import PROCESS
-from hybrid_sysid.cli.progress import count_done, job_line, start_line, sweep_jobs
+from hybrid_sysid.cli.progress import count_done, header_of, job_line, mark_start, record_of, start_line
+from hybrid_sysid.cli.time_left import work_seconds
+from hybrid_sysid.core.words import count
 from hybrid_sysid.runs.layout import PROGRESS
 
 log = logging.getLogger("hybrid_sysid")
@@ -39,9 +42,10 @@ REPORT_MODULES = (
     "hybrid_sysid.experiments",
     "hybrid_sysid.report.paper",
     "hybrid_sysid.report.summary",
-    "hybrid_sysid.report.markdown",
+    "hybrid_sysid.report.terminal",
     "hybrid_sysid.training.tracking.mlflow_store",
 )
+_process = {"jobs": 0}  # the jobs this process has started (a parallel worker runs several)
 PRELOAD_AFTER = 5.0  # seconds: Hydra's launcher has imported its own modules and started the jobs by then
 
 
@@ -67,14 +71,13 @@ class SweepSummary(Callback):
 
     def on_multirun_start(self, config: DictConfig, **kwargs: Any) -> None:
         sweep_dir = Path(config.hydra.sweep.dir)
-        jobs, swept = sweep_jobs(config)
+        header = header_of(config, time.time())
         try:
             sweep_dir.mkdir(parents=True, exist_ok=True)
-            header = {"jobs": jobs, "swept": swept, "start": time.time()}
             (sweep_dir / PROGRESS).write_text(json.dumps(header) + "\n", encoding="utf-8")
         except OSError:  # no progress lines then; the sweep itself reports the directory's problem
             pass
-        print(start_line(config, jobs, sweep_dir), flush=True)
+        print(start_line(config, header["jobs"], sweep_dir), flush=True)
         cancel = threading.Event()
         thread = threading.Thread(target=_load_report_modules, args=(cancel,), daemon=True)
         thread.start()
@@ -82,14 +85,26 @@ class SweepSummary(Callback):
 
     def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
         self._job_start = time.time()
+        self._cold = not _process["jobs"]  # this process's first job pays its imports (progress: time_left)
+        _process["jobs"] += 1
+        if config.hydra.mode == RunMode.MULTIRUN:
+            try:
+                mark_start(Path(config.hydra.sweep.dir) / PROGRESS, config.hydra.job.num, self._job_start, os.getpid())
+            except Exception as exc:  # noqa: BLE001 - the estimate then counts the job as not started
+                log.info("no progress start: %s: %s", type(exc).__name__, exc)
 
     def on_job_end(self, config: DictConfig, job_return: Any = None, **kwargs: Any) -> None:
         if config.hydra.mode != RunMode.MULTIRUN:
             return
         try:
-            header, done = count_done(Path(config.hydra.sweep.dir) / PROGRESS, config.hydra.job.num)
-            seconds = time.time() - getattr(self, "_job_start", time.time())
-            line = job_line(header, done, config.hydra.job.num, job_return, seconds)
+            now = time.time()
+            seconds = now - getattr(self, "_job_start", now)
+            record = record_of(job_return)
+            ok = isinstance(record, dict) and record.get("status", "completed") == "completed"
+            entry = {"t": now, "seconds": seconds, "cold": getattr(self, "_cold", True), "pid": os.getpid()}
+            path = Path(config.hydra.sweep.dir) / PROGRESS
+            header, done = count_done(path, config.hydra.job.num, {**entry, "work": work_seconds(record), "ok": ok})
+            line = job_line(header, done, config.hydra.job.num, job_return, seconds, now)
         except Exception as exc:  # noqa: BLE001 - e.g. no .progress (a sweep started elsewhere): the job is done
             log.info("no progress line: %s: %s", type(exc).__name__, exc)
             return
@@ -105,16 +120,18 @@ class SweepSummary(Callback):
             cancel.set()
             thread.join()
         import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
-        from hybrid_sysid.report.markdown import to_markdown
         from hybrid_sysid.report.paper import write_reproduction
         from hybrid_sysid.report.summary import threads_warning, write_summary
+        from hybrid_sysid.report.terminal import to_console
         from hybrid_sysid.training.tracking.mlflow_store import log_sweep
 
         sweep_dir = Path(config.hydra.sweep.dir)
 
         def show(df, table) -> None:  # the table as soon as it is written; the sweep's figures after it
-            print(f"\nmean relative deviation on the test split [%], mean ± std over seeds ({sweep_dir}):\n")
-            print(to_markdown(table, compare=self.compare, bound=table.attrs.get("bound")), flush=True)
+            # in blocks a terminal shows whole (report.terminal); summary.md has the same cells in one wide table
+            print("\nmean relative deviation on the test split [%], mean ± std over seeds [95% t interval]")
+            print(f"(the whole table in one: {sweep_dir / 'summary.md'})\n")
+            print(to_console(table, compare=self.compare, bound=table.attrs.get("bound")), flush=True)
             warning = threads_warning(df)
             if warning:
                 log.warning(warning)
@@ -135,5 +152,6 @@ class SweepSummary(Callback):
             for _, row in failed.iterrows():
                 log.error("job %s %s: %s", row["run"], row["status"], row["error"])
             raise SystemExit(
-                f"{len(failed)} of {df.run.nunique()} jobs failed or were interrupted; summary in {sweep_dir}"
+                f"{len(failed)} of {count(df.run.nunique(), 'job')} failed or {'was' if len(failed) == 1 else 'were'} "
+                f"interrupted; summary in {sweep_dir}"
             )

@@ -21,7 +21,7 @@ TRAINED = (BEST, LAST)  # the weights a trained run is used with: best, else las
 WRITER_LOCK = ".writer.lock"  # in a run or sweep directory: held by the one process that writes there
 SWEEP_CONFIG = "multirun.yaml"
 STOP_MARKER = ".interrupted"  # in a sweep directory: the sweep was interrupted, jobs not yet started skip
-PROGRESS = ".progress"  # in a sweep directory: a JSON line (jobs, swept keys, start), then one line per ended job
+PROGRESS = ".progress"  # in a sweep directory: a JSON header (jobs, kinds, start), a JSON line per job start, end
 # what a run's MLflow run keeps of its files: the file -> its folder among the artifacts
 TRACKED = {RECORD: "", CURVES: "", CONFIG: "config", OVERRIDES: "config", HYDRA: "config"}
 
