@@ -40,15 +40,17 @@ def on_path(env: dict, site: Path) -> dict:
 @started_early
 def sine_seat_run(tmp, env):
     """(the run's process, its directory, the --help of a process with the package and of one without it, the
-    folder the package is installed in)."""
+    folder the package is installed in, hybrid-sysid-eval's process on the run and its directory)."""
     site = install_example(tmp)
     run = app_process.run_app(tmp, *RUN, f"hydra.run.dir={tmp / 'run'}", env=on_path(env, site))
     helps = [app_process.run_app(tmp, "--help", env=e, timeout=120) for e in (on_path(env, site), env)]
-    return run, tmp / "run", helps, site
+    again = [f"run={tmp / 'run'}", f"hydra.run.dir={tmp / 'eval'}"]
+    evaluation = app_process.run_app(tmp, *again, env=on_path(env, site), module="hybrid_sysid.cli.evaluate")
+    return run, tmp / "run", helps, site, evaluation, tmp / "eval"
 
 
 def test_a_network_trains_and_is_scored_on_a_plugins_data_module(sine_seat_run):
-    proc, run, _, _ = sine_seat_run
+    proc, run, *_ = sine_seat_run
     assert proc.returncode == 0, proc.stderr[-3000:]
     record = json.loads((run / "metrics.json").read_text())
     assert record["status"] == "completed" and record["steps"] == STEPS
@@ -82,7 +84,7 @@ def test_a_network_trains_and_is_scored_on_a_plugins_data_module(sine_seat_run):
 
 
 def test_help_lists_the_packages_options_beside_the_projects_and_only_the_projects_without_it(sine_seat_run):
-    _, _, helps, _ = sine_seat_run
+    _, _, helps, *_ = sine_seat_run
     plugin_conf = EXAMPLE / "src" / "hybrid_sysid_example_plugin" / "conf"
     for proc, dirs in zip(helps, ([Path(CONF_DIR), plugin_conf], [Path(CONF_DIR)])):
         assert proc.returncode == 0, proc.stderr[-2000:]
@@ -115,3 +117,15 @@ def test_the_example_recordings_follow_their_seat_equation(sine_seat_run, monkey
         # the rule's error on a sine of w is (w dt)^2 / 12 of its step: 1.3e-3 at the band's top, 4 Hz (1.06e-3
         # measured); a wrong sign or derivative is of the order of the step
         assert np.abs(step - trapezoid).max() < 3e-3 * np.abs(step).max()
+
+
+def test_hybrid_sysid_eval_scores_the_trained_network_on_the_data_module_again(sine_seat_run):
+    """The same config, seed and weights on the same data module: the same numbers, to the last digit."""
+    proc, run, _, _, evaluation, again = sine_seat_run
+    assert proc.returncode == 0 and evaluation.returncode == 0, evaluation.stderr[-3000:]
+    trained, scored = (json.loads((d / "metrics.json").read_text()) for d in (run, again))
+    assert scored["status"] == "completed" and scored["source_run"] == str(run)
+    assert scored["plugins"] == trained["plugins"]
+    assert [r for r in scored["results"] if r["split"] == "test"] == [
+        r for r in trained["results"] if r["split"] == "test"
+    ]
