@@ -144,3 +144,15 @@ def test_the_command_refuses_a_data_module_lacking_a_member_in_one_line_making_n
     assert code == 2 and len(lines) == 1, err[-2000:]
     assert lines[0].startswith(f"error: data.module._target_ = '{TARGET}' is not allowed: a class with eval_batch")
     assert not (tmp_path / "run").exists() and not (tmp_path / "outputs").exists()
+
+
+def test_the_simulators_data_module_meets_the_contract(make_cfg):
+    """DataModule declares what the run reads of the project's own data module: its class and a built one have it
+    all (the protocol names no member the simulator's module lacks)."""
+    from hybrid_sysid.config.targets import known_class
+    from hybrid_sysid.model.base import DataModule, lacks
+    from hybrid_sysid.training.build import build_datamodule
+
+    cls = known_class("hybrid_sysid.data.datamodule.QuarterCarDataModule", "data.module")
+    assert lacks(cls, DataModule) == ["window", "dataset"]  # set by the constructor: checked on the object
+    assert lacks(build_datamodule(make_cfg("data=tiny")), DataModule) == []
