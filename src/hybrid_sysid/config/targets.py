@@ -232,9 +232,9 @@ def data_module(cfg: DictConfig, objective=None):
     which interpolate the run's values (``${data.window}``, ``${seed}``); None when it is null, the simulator's. Its
     constructor loads nothing, so the checks before any work build it too. ConfigError naming the key: a class
     that may not be named or lacks a member of DataModule (model/base.py), a constructor that refuses its arguments,
-    a window other than data.window, a baseline run (a baseline reads the simulator's whole recordings), data.path
-    set too, or an objective (``objective``, else the config's) that reads band-passed signals or an outside fit,
-    which such batches do not carry."""
+    a window or dt other than data.window or data.dt, a baseline run (a baseline reads the simulator's whole
+    recordings), data.path set too, or an objective (``objective``, else the config's) that reads band-passed
+    signals or an outside fit, which such batches do not carry."""
     key = "data.module"
     node = OmegaConf.select(cfg, key)
     if node is None:
@@ -243,6 +243,8 @@ def data_module(cfg: DictConfig, objective=None):
         bad(f"{key}._target_", node.get("_target_"), "none with baseline= (a baseline reads the simulated recordings)")
     if cfg.data.get("path") is not None:
         bad(f"{key}._target_", node.get("_target_"), "none with data.path (data=recordings reads its files itself)")
+    if node.get("dt") is not None and node.get("dt") != cfg.data.dt:  # another step would misread the recordings
+        bad(f"{key}.dt", node.get("dt"), f"the recordings' step, data.dt = {cfg.data.dt} (${{data.dt}})")
     objective = build(cfg.objective, "objective") if objective is None else objective
     for member, what in (("fir", "band-passed signals"), ("outside_fir", "fit over each window's outside samples")):
         if getattr(objective, member, None) is not None:

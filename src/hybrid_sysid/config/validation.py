@@ -130,7 +130,7 @@ def _check_noise(cfg: DictConfig) -> None:
 def _check_steps(cfg: DictConfig) -> None:
     """A network's, objective's or baseline's ``dt`` (``${data.dt}`` in every preset) is the recordings' step: any
     other would read them at a step they were not sampled at (model.net.dt=0.01 on 0.005 s data: 50% off)."""
-    for section in ("model.net", "objective", "baseline", "data.module"):
+    for section in ("model.net", "objective", "baseline"):
         node = OmegaConf.select(cfg, section)
         step = node.get("dt") if isinstance(node, DictConfig) else None
         if step is not None and step != cfg.data.dt:
