@@ -82,6 +82,24 @@ def test_the_same_command_again_skips_the_completed_runs_and_rewrites_none_of_th
 
 
 @pytest.mark.parametrize("mode", ["sweep", "run"])
+def test_a_sweep_saved_before_a_key_existed_is_the_same_command_again(copy, mode, cli_in_process, tiny_cache):
+    """multirun.yaml and the jobs' saved configs without ``tags``, as a sweep made before the key existed has
+    them: its default ([]) is what they meant, so the command again skips the completed runs (it was refused,
+    "tags: (absent) there, [] here")."""
+    from hybrid_sysid.cli.train import main
+
+    sw, conf = copy
+    for saved in [sw / "multirun.yaml", *sw.glob("*/.hydra/config.yaml")]:
+        values = yaml.safe_load(saved.read_text())
+        assert values.pop("tags") == []
+        saved.write_text(yaml.safe_dump(values))
+    where = sw if mode == "sweep" else sw / "0"
+    code, out, err = cli_in_process(main, *command(where, conf, mode=mode), cwd=sw.parent, env=env(tiny_cache))
+    assert code == 0, err[-2000:]
+    assert "already completed" in out + err
+
+
+@pytest.mark.parametrize("mode", ["sweep", "run"])
 def test_a_changed_file_of_the_config_dir_is_refused_before_anything_is_written(copy, mode, cli_in_process, tiny_cache):
     from hybrid_sysid.cli.train import main
 

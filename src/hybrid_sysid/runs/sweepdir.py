@@ -12,6 +12,7 @@ from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.runs import layout
 from hybrid_sysid.runs.reading import load_config, read_yaml
+from hybrid_sysid.runs.resume import ADDED
 
 KEY = "hydra.sweep.dir"
 ABSENT = "(absent)"
@@ -97,8 +98,10 @@ def _task(values: dict) -> dict:
 
 
 def first_difference(there: dict, here: dict):
-    """The first dotted key whose value differs between two plain configs, as (key, there, here); None when equal."""
-    was, now = flatten(there), flatten(here)
+    """The first dotted key whose value differs between two plain configs, as (key, there, here); None when equal.
+    A key added since a config was saved (runs.resume.ADDED) reads as its default there: a sweep or run made
+    before ``tags`` existed is the same config as one with ``tags: []``."""
+    was, now = ({**ADDED, **flatten(c)} for c in (there, here))
     key = next((k for k in sorted(was.keys() | now.keys()) if was.get(k, ABSENT) != now.get(k, ABSENT)), None)
     return None if key is None else (key, was.get(key, ABSENT), now.get(key, ABSENT))
 
