@@ -35,6 +35,11 @@ def composition_error(exc: BaseException) -> ConfigError | None:
             said = _words(lines[1]) + (f" (composing {where.group(1)})" if where else "")
             return ConfigError(full_key.group(1), allowed=said + _launcher_hint(full_key.group(1)))
         return ConfigError(_override_key(lines[0]) if lines else "the config", allowed=_words(" ".join(lines)))
+    full_key = re.search(r"full_key: (\S+)", str(exc))
+    if isinstance(exc, (AttributeError, TypeError)) and full_key:
+        # 'baseline={a:1}': OmegaConf merges the dict into the schema's null section and fails inside, unwrapped
+        key = full_key.group(1)
+        return ConfigError(key, allowed=f"a value of the schema's type; set a section's keys one by one ({key}.x=...)")
     if isinstance(exc, ValueError) and str(exc).startswith("Config group override must be a string"):
         # baseline=null: Hydra takes null as no option at all, before composing, and names no group
         group = _null_group()
