@@ -76,10 +76,10 @@ def cli_in_process(monkeypatch, capfd):
     For a refusal, which ends before any work, a new process would only add seconds of imports; a test that needs
     a real process (signals, another process's lock, an interpreter's own output) starts one. Reset around the
     call: the working directory, the environment (no HYDRA_FULL_ERROR, as a user has it), sys.argv, the state the
-    command keeps for its one process (hybrid_sysid.cli.process), the locks it took and Hydra's global instance."""
+    command keeps for its one process (hybrid_sysid.launch.process), the locks it took and Hydra's global instance."""
     from hydra.core.global_hydra import GlobalHydra
 
-    from hybrid_sysid.cli.process import PROCESS
+    from hybrid_sysid.launch.process import PROCESS
     from hybrid_sysid.runs import locks
 
     def run(main, *args, cwd, env=None):

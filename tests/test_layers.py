@@ -21,6 +21,7 @@ LAYERS = [
     {"training"},
     {"report"},
     {"experiments", "inference"},
+    {"launch"},
     {"cli", "__main__", "__init__"},
 ]
 

@@ -8,7 +8,7 @@ import sys
 
 import pytest
 
-from hybrid_sysid.cli.console import ConsoleFilter
+from hybrid_sysid.launch.console import ConsoleFilter
 
 from helpers.app_process import run_app
 from helpers.started_early import started_early
@@ -96,7 +96,7 @@ def test_progress_bar_auto_draws_only_on_a_terminal(monkeypatch, make_cfg):
 def test_the_console_filter_keeps_a_sweeps_jobs_quiet():
     import logging
 
-    from hybrid_sysid.cli.console import job_running
+    from hybrid_sysid.launch.console import job_running
 
     def shown(filter_, name, level, msg):
         return filter_.filter(logging.LogRecord(name, level, __file__, 1, msg, (), None))
@@ -116,7 +116,7 @@ def test_the_console_filter_keeps_a_sweeps_jobs_quiet():
 def test_the_console_counts_in_the_singular_and_plural():
     from omegaconf import OmegaConf
 
-    from hybrid_sysid.cli.progress import start_line
+    from hybrid_sysid.launch.progress import start_line
     from hybrid_sysid.core.words import count
 
     assert [count(n, "job") for n in (0, 1, 2)] == ["0 jobs", "1 job", "2 jobs"]
@@ -136,7 +136,7 @@ def test_a_job_line_estimates_the_time_left():
     import time
     from types import SimpleNamespace
 
-    from hybrid_sysid.cli.progress import job_line
+    from hybrid_sysid.launch.progress import job_line
 
     header = {"jobs": 9, "swept": ["objective", "seed"], "start": time.time() - 60}
     record = {"status": "completed", "results": [
@@ -189,7 +189,7 @@ def test_a_missing_extra_names_the_install_command_of_this_install(monkeypatch, 
     import importlib.metadata
     from types import SimpleNamespace
 
-    from hybrid_sysid.cli import process as job
+    from hybrid_sysid.launch import process as job
 
     text = None if direct_url is None else json.dumps(direct_url)
     monkeypatch.setattr(importlib.metadata, "distribution", lambda name: SimpleNamespace(read_text=lambda f: text))

@@ -8,7 +8,7 @@ import pytest
 import yaml
 from hydra import compose, initialize_config_dir
 
-from hybrid_sysid.cli.choices import SET_BY_ESTIMATOR, check_choices, check_estimator
+from hybrid_sysid.launch.choices import SET_BY_ESTIMATOR, check_choices, check_estimator
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.core.checks import ConfigError
 
@@ -89,7 +89,7 @@ NETWORK_GROUPS = {"model", "objective"}
 
 
 def test_the_groups_refused_beside_a_baseline_are_those_only_networks_set():
-    from hybrid_sysid.cli.choices import UNREAD_BY_BASELINE
+    from hybrid_sysid.launch.choices import UNREAD_BY_BASELINE
 
     names = [p.stem for p in Path(CONF_DIR, "estimator").glob("*.yaml")]
     networks = [n for n in names if "baseline" not in overridden_groups(n)]

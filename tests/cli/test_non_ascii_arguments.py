@@ -1,11 +1,11 @@
 """A path outside ASCII given as an override: Hydra's grammar allows no such character in an unquoted value, and
-under an ASCII locale Python hands it over as lone surrogates (hybrid_sysid.cli.overrides quotes it)."""
+under an ASCII locale Python hands it over as lone surrogates (hybrid_sysid.launch.overrides quotes it)."""
 
 import os
 
 import pytest
 
-from hybrid_sysid.cli.overrides import quoted_overrides
+from hybrid_sysid.launch.overrides import quoted_overrides
 
 from helpers.app_process import run_app
 

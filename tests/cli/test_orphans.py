@@ -1,5 +1,5 @@
 """A parallel sweep's workers end when its parent is killed (SIGKILL: it can pass nothing on), rather than run the
-remaining jobs into the dead sweep and idle for good (hybrid_sysid.cli.orphans)."""
+remaining jobs into the dead sweep and idle for good (hybrid_sysid.launch.orphans)."""
 
 import contextlib
 import json
@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from hybrid_sysid.cli.orphans import exit_with_parent
+from hybrid_sysid.launch.orphans import exit_with_parent
 
 from helpers.app_process import user_env
 
@@ -88,7 +88,7 @@ def test_only_a_started_worker_watches_its_parent_and_only_once():
 
 WATCHED = """
 import signal, sys, threading, time
-from hybrid_sysid.cli import orphans
+from hybrid_sysid.launch import orphans
 signal.signal(signal.SIGTERM, lambda *_: print("SIGTERM", flush=True))  # as the job's handler: a request
 job, grace = float(sys.argv[1]), float(sys.argv[2])
 with orphans.job_in_progress():

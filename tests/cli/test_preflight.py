@@ -1,5 +1,5 @@
 """A preflight check that cannot complete stops the command in one line (exit 2) before any directory is made:
-Hydra would only warn about a callback's exception and run the job unchecked (hybrid_sysid.cli.job)."""
+Hydra would only warn about a callback's exception and run the job unchecked (hybrid_sysid.launch.job)."""
 
 import shutil
 import subprocess
@@ -57,7 +57,7 @@ def test_a_check_that_raises_anything_stops_the_command_before_any_directory(tmp
 
 
 def test_a_sweep_whose_check_raises_anything_stops_before_its_directory(tmp_path, monkeypatch, cli_in_process):
-    import hybrid_sysid.cli.job as job
+    import hybrid_sysid.launch.job as job
     from hybrid_sysid.cli.train import main
 
     def broken(*args, **kwargs):

@@ -7,8 +7,8 @@ import signal
 
 import pytest
 
-from hybrid_sysid.cli import job
-from hybrid_sysid.cli.process import PROCESS, SIGNALS
+from hybrid_sysid.launch import job
+from hybrid_sysid.launch.process import PROCESS, SIGNALS
 from hybrid_sysid.core import stop
 from hybrid_sysid.runs import locks
 

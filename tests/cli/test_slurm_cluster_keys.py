@@ -45,7 +45,7 @@ def job(*args):  # what a job would run; never called here
 def test_the_cluster_keys_reach_the_batch_script(tmp_path, monkeypatch):
     from hydra.core.utils import JobReturn
 
-    from hybrid_sysid.cli.slurm import SlurmLauncher
+    from hybrid_sysid.launch.slurm import SlurmLauncher
 
     bin_dir, kept = tmp_path / "bin", tmp_path / "script.sh"
     bin_dir.mkdir()

@@ -9,7 +9,7 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from hybrid_sysid.cli import slurm_limits as sl
+from hybrid_sysid.launch import slurm_limits as sl
 from hybrid_sysid.config import CONF_DIR
 
 pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
@@ -112,7 +112,7 @@ def test_preset_asks_the_jobs_threads_and_the_datas_memory():
 def test_no_srun_hint_outside_a_slurm_job(tmp_path, monkeypatch):
     import lightning as L
 
-    from hybrid_sysid.cli.console import quiet_libraries
+    from hybrid_sysid.launch.console import quiet_libraries
 
     srun = tmp_path / "srun"
     srun.write_text("#!/bin/sh\nexit 0\n")
@@ -141,7 +141,7 @@ class FakeJob:
 
 def fake_slurm(monkeypatch, queue_text):
     """SLURM's commands answering with captured text; scancel recorded, not run."""
-    from hybrid_sysid.cli import slurm
+    from hybrid_sysid.launch import slurm
 
     answers = {"squeue": queue_text, "scontrol": OPEN, "sinfo": NODES}
     monkeypatch.setattr(slurm.slurm_limits, "run", lambda *cmd: answers[cmd[0]])

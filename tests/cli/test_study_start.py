@@ -1,4 +1,4 @@
-"""Searches starting together on one fresh study storage (hybrid_sysid.cli.study): one takes the study, each other
+"""Searches starting together on one fresh study storage (hybrid_sysid.launch.study): one takes the study, each other
 one is refused in one line naming hydra.sweeper.storage and the search that has it, and none prints a traceback.
 SQLite here; PostgreSQL where a throwaway server can start in the test (its binaries and psycopg 3 present)."""
 
@@ -24,7 +24,7 @@ START = textwrap.dedent("""
     import sys, time
     from pathlib import Path
     from optuna.distributions import FloatDistribution
-    from hybrid_sysid.cli.search import open_study
+    from hybrid_sysid.launch.search import open_study
     from hybrid_sysid.experiments.search import StudySettings
     url, sweep, at = sys.argv[1], Path(sys.argv[2]), float(sys.argv[3])
     space = {"model.optim.lr": FloatDistribution(0.002, 0.05, log=True)}

@@ -22,7 +22,7 @@ TINY = ["data=tiny", "trainer=debug", "trainer.max_steps=10", "trainer.eval_ever
 def starting_workers(pid: int) -> list[int]:
     """The sweep's loky workers that have started but have no SIGTERM handler yet (still importing, before their
     first job)."""
-    from hybrid_sysid.cli.process import catches_sigterm
+    from hybrid_sysid.launch.process import catches_sigterm
 
     found = []
     for stat in Path("/proc").glob("[0-9]*/stat"):
@@ -71,8 +71,8 @@ def worker(tmp_path, monkeypatch):
     """This process as a sweep's worker between jobs: its signal handlers and the sweep's state put back after.
     It has no workers of its own: its children are other tests' processes started early, which a signal passed on
     by the sweep's handler (stop_sweep) would end."""
-    from hybrid_sysid.cli import process
-    from hybrid_sysid.cli.process import PROCESS, SIGNALS
+    from hybrid_sysid.launch import process
+    from hybrid_sysid.launch.process import PROCESS, SIGNALS
 
     monkeypatch.setattr(process, "children", lambda: [])
     handlers = {s: signal.getsignal(s) for s in SIGNALS}
@@ -90,7 +90,7 @@ def record(run_dir):
 
 
 def test_a_job_not_started_when_the_sweep_was_interrupted_records_it_without_running(worker):
-    from hybrid_sysid.cli.job import run_job
+    from hybrid_sysid.launch.job import run_job
     from hybrid_sysid.runs.layout import STOP_MARKER
 
     sw = worker
@@ -104,7 +104,7 @@ def test_a_job_not_started_when_the_sweep_was_interrupted_records_it_without_run
 def test_a_parallel_worker_keeps_the_sweeps_signal_handling_between_its_jobs(worker):
     """A worker of a parallel sweep (its parent's sweep directory unknown to it) finishes a job, takes SIGTERM
     before the next: it lives on, and the next job records its interruption without running."""
-    from hybrid_sysid.cli.job import run_job
+    from hybrid_sysid.launch.job import run_job
 
     sw, ran = worker, []
     first = run_job(lambda: {"status": "completed"}, sw / "0", ["seed=0"], 0, multirun=True, sweep_dir=None)
@@ -119,7 +119,7 @@ def test_a_summary_that_cannot_be_written_ends_the_sweep_nonzero(tmp_path, monke
     """The sweep's end raises SystemExit, which Hydra's callback runner passes on (it turns an Exception of a
     callback into a warning and exit status 0)."""
     import hybrid_sysid.report.summary as summary
-    from hybrid_sysid.cli.sweep import SweepSummary
+    from hybrid_sysid.launch.sweep import SweepSummary
 
     def full_disk(*args, **kwargs):
         raise OSError(28, "No space left on device")

@@ -1,5 +1,5 @@
 """The time left a sweep's job lines print, against sweeps simulated on a clock of their own (no wall time): each
-job's start and end as the launcher and the jobs would write them to the progress file (hybrid_sysid.cli.progress),
+job's start and end as the launcher and the jobs would write them to the progress file (hybrid_sysid.launch.progress),
 and the truth, the last job's end, known in advance."""
 
 import json
@@ -7,8 +7,8 @@ from types import SimpleNamespace
 
 import pytest
 
-from hybrid_sysid.cli.progress import count_done, job_line, mark_start
-from hybrid_sysid.cli.time_left import estimate
+from hybrid_sysid.launch.progress import count_done, job_line, mark_start
+from hybrid_sysid.launch.time_left import estimate
 
 WITHIN = 0.30  # the estimate's promise once the first job has ended, relative to the truth
 

@@ -46,7 +46,7 @@ def transfer_job(tmp_path_factory, tiny_cache):
 
 @pytest.mark.parametrize("status", ["interrupted", "failed"])
 def test_a_transfer_job_removes_its_stale_record_once_every_run_is_done(transfer_job, tiny_cache, status):
-    # what cli/job.py's run.record_end leaves when a signal or an error ended the job earlier
+    # what launch/job.py's run.record_end leaves when a signal or an error ended the job earlier
     RunDir(transfer_job).record_end(["seed=0"], 0, status, "interrupted by SIGTERM")
     assert json.loads((transfer_job / "metrics.json").read_text())["status"] == status
     before = files_of(transfer_job)

@@ -1,4 +1,4 @@
-"""Hyperparameter search (conf/hparams_search, the study sweeper of hybrid_sysid.cli.search) as a user runs it (a
+"""Hyperparameter search (conf/hparams_search, the study sweeper of hybrid_sysid.launch.search) as a user runs it (a
 subprocess where a signal ends it, else the command's main() in this process): a seeded 3-trial study completes
 with finite values, each trial's value is its job's model-selection figure, a failed trial is recorded and the
 study goes on, the best parameters are written beside the sweep, a search terminated during a trial and run again

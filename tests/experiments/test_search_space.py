@@ -115,7 +115,7 @@ def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
 
 def test_a_stored_study_of_another_search_is_refused_in_one_line(make_cfg, tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)  # with it, a refusal adds its traceback
-    from hybrid_sysid.cli.search import _own
+    from hybrid_sysid.launch.search import _own
     from hybrid_sysid.experiments.search import study_settings
 
     settings = {"params": GOOD, "n_trials": 3, "study_name": "s", "storage": "sqlite:///elsewhere.db"}
@@ -138,7 +138,7 @@ def test_a_stored_study_of_another_search_is_refused_in_one_line(make_cfg, tmp_p
 def test_each_jobs_record_becomes_its_trials_state():
     """A job's value is its record's best_score; a failed job, a job without that figure or one whose exception
     escaped is a failed trial, and the study goes on; an interrupted job's trial stays running, for the re-run."""
-    from hybrid_sysid.cli.search import _tell
+    from hybrid_sysid.launch.search import _tell
 
     class Ret:
         def __init__(self, record=None, raises=None):

@@ -36,7 +36,7 @@ def test_report_on_sweep_with_failures_writes_everything_and_returns_1(sweep, ca
 
 def test_report_on_a_sweep_with_an_interrupted_job_writes_everything_and_returns_1(tmp_path, capsys):
     sweep = make_sweep(tmp_path / "sweep", failed=False)
-    # the record a job writes when a signal stops it (cli/job.py), by the same writer
+    # the record a job writes when a signal stops it (launch/job.py), by the same writer
     RunDir(sweep / "4").record_end(["objective=hybrid", "seed=2", "noise=ladder"], 2, "interrupted", "by SIGTERM")
     assert main([str(sweep)]) == 1
     assert set(pd.read_csv(sweep / "summary.csv").status) == {"completed", "interrupted"}

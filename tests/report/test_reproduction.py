@@ -218,7 +218,7 @@ def test_cli_results_directory_has_an_index_a_page_per_sweep_and_links_the_notes
 
 
 def test_callback_writes_reproduction_when_asked(tmp_path, capsys):
-    from hybrid_sysid.cli.sweep import SweepSummary
+    from hybrid_sysid.launch.sweep import SweepSummary
 
     sweep = _make(tmp_path / "sw")
     config = OmegaConf.create({"hydra": {"sweep": {"dir": str(sweep)}}})

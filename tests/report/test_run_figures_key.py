@@ -6,7 +6,7 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.cli import report
-from hybrid_sysid.cli.job import draws_figures
+from hybrid_sysid.launch.job import draws_figures
 from hybrid_sysid.config import ConfigError, validate
 
 from helpers.evaluation_fakes import make_run

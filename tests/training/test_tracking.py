@@ -150,7 +150,7 @@ def test_an_sqlite_store_that_is_no_database_is_one_line_before_any_work(make_cf
 
 
 def test_a_search_or_launcher_without_its_plugin_names_the_extra(monkeypatch):
-    from hybrid_sysid.cli import process as app
+    from hybrid_sysid.launch import process as app
 
     monkeypatch.setattr(app, "installed", lambda module: False)
     assert (

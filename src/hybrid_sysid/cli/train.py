@@ -1,8 +1,8 @@
 """``hybrid-sysid``: compose the config, check it, run its task (one run, a transfer chain, a tuned comparison),
-draw the run's figures. The job's signals, interruption and failure records: hybrid_sysid.cli.job; exit statuses:
-hybrid_sysid.cli.process.
+draw the run's figures. The job's signals, interruption and failure records: hybrid_sysid.launch.job; exit statuses:
+hybrid_sysid.launch.process.
 
-A job returns its record. Under a hyperparameter search (hybrid_sysid.cli.search, conf/hparams_search) the
+A job returns its record. Under a hyperparameter search (hybrid_sysid.launch.search, conf/hparams_search) the
 study reads its ``best_score``: the validation figure its model selection used (val/loss for a label-free
 objective, val/rel_dev otherwise; trainer.monitor).
 """
@@ -21,8 +21,8 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, checks_complete, draws_figures, run_job
-from hybrid_sysid.cli.process import console_main
+from hybrid_sysid.launch.job import Preflight, checks_complete, draws_figures, run_job
+from hybrid_sysid.launch.process import console_main
 from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.runs.rundir import RunDir
@@ -31,7 +31,7 @@ log = logging.getLogger("hybrid_sysid")
 
 
 class TrainPreflight(Preflight):
-    """Preflight (hybrid_sysid.cli.job) that also checks the config's values and its ``resume=`` directory."""
+    """Preflight (hybrid_sysid.launch.job) that also checks the config's values and its ``resume=`` directory."""
 
     saves_task_config = True
 
@@ -144,7 +144,7 @@ def _draw_figures(run_dir: Path) -> None:
 
 
 def main() -> None:
-    """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.cli.process)."""
+    """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.launch.process)."""
     console_main(hydra_main, sys.argv[1:])
 
 

@@ -1,7 +1,7 @@
 """A termination signal as the work sees it: a request that safe points check, and ``Interrupted``, which they
 raise.
 
-The command-line entry points' signal handler (hybrid_sysid.cli.process) only ``request``s the stop: an exception
+The command-line entry points' signal handler (hybrid_sysid.launch.process) only ``request``s the stop: an exception
 raised from a signal handler would land in whatever code runs at that moment, and a few places swallow it (a
 finaliser, a weak-reference callback, a library's broad handler), so the work would go on as if no signal had
 come. The work raises Interrupted itself, at its safe points (``check``): after every training and validation
@@ -68,7 +68,7 @@ def received() -> int | None:
 
 def requeue_on(signum: int | None) -> None:
     """The signal after which the job runs again by itself (SLURM's time limit, through submitit:
-    hybrid_sysid.cli.slurm): an interruption by it is recorded, but it does not stop the sweep."""
+    hybrid_sysid.launch.slurm): an interruption by it is recorded, but it does not stop the sweep."""
     _signal["requeue"] = signum
 
 

@@ -1,5 +1,5 @@
 """A hyperparameter search's space and sampler, shared by ``hparams_search=...`` (the study sweeper,
-hybrid_sysid.cli.search) and ``experiment=tuned`` (hybrid_sysid.experiments.tuned).
+hybrid_sysid.launch.search) and ``experiment=tuned`` (hybrid_sysid.experiments.tuned).
 
 The space is written in Hydra's sweep syntax and read by Hydra's own parser: ``choice(...)`` (or ``a,b,c``) is
 categorical; ``interval(a, b)`` is a uniform float (Hydra reads its bounds as floats), log-uniform when tagged log.

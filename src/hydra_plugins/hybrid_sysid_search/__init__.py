@@ -1,7 +1,7 @@
 """hybrid-sysid's hyperparameter search as a Hydra sweeper (config: hybrid_sysid/conf/hydra/sweeper/study.yaml).
 
 Hydra accepts a sweeper only from this namespace package, and imports every module here for every Hydra app in
-the environment, so this one holds the class alone and imports the work (hybrid_sysid.cli.search, optuna) when a
+the environment, so this one holds the class alone and imports the work (hybrid_sysid.launch.search, optuna) when a
 search runs."""
 
 from __future__ import annotations
@@ -25,6 +25,6 @@ class StudySweeper(Sweeper):
         )
 
     def sweep(self, arguments: list[str]) -> Any:
-        from hybrid_sysid.cli.search import run_study
+        from hybrid_sysid.launch.search import run_study
 
         return run_study(self.config, self.launcher, self.settings, list(arguments))

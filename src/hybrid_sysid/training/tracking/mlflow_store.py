@@ -123,7 +123,7 @@ def log_run_figures(run_dir: Path) -> None:
 
 
 def log_sweep(config: DictConfig, sweep_dir: Path) -> None:
-    """At a sweep's end (hybrid_sysid.cli.sweep), for each MLflow logger of the sweep's config: its
+    """At a sweep's end (hybrid_sysid.launch.sweep), for each MLflow logger of the sweep's config: its
     summary table (summary.md, .csv, ...), figures and multirun.yaml as artifacts of the experiment's run
     ``sweep summary``, and summary.md as the experiment's description. A failure is a warning."""
     for lg in (OmegaConf.select(config, "logger", default=None) or {}).values():

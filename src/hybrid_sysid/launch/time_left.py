@@ -1,4 +1,4 @@
-"""A sweep's time left, from the starts and ends its jobs wrote to the progress file (hybrid_sysid.cli.progress).
+"""A sweep's time left, from the starts and ends its jobs wrote to the progress file (hybrid_sysid.launch.progress).
 
 Elapsed / done x remaining, the first estimate, said "about 32:36 left" when 2:16 remained. Three things made it
 wrong, and each has its answer here:

@@ -11,7 +11,7 @@ hydra-submitit-launcher's, which sends a sweep's jobs to SLURM as one job array,
   failed; SIGTERM or Ctrl-C cancels the array (``scancel``) and waits for its jobs to record their interruption.
 
 The request is checked against the partition before anything is submitted (``check_request``, from the
-preflight: hybrid_sysid.cli.job).
+preflight: hybrid_sysid.launch.job).
 """
 
 from __future__ import annotations
@@ -31,9 +31,9 @@ from hydra_plugins.hydra_submitit_launcher.config import BaseQueueConf
 from hydra_plugins.hydra_submitit_launcher.submitit_launcher import SlurmLauncher as SubmititSlurmLauncher
 from omegaconf import OmegaConf, open_dict
 
-from hybrid_sysid.cli import slurm_limits
-from hybrid_sysid.cli.process import fail
-from hybrid_sysid.cli.progress import count_done, job_line
+from hybrid_sysid.launch import slurm_limits
+from hybrid_sysid.launch.process import fail
+from hybrid_sysid.launch.progress import count_done, job_line
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.runs.layout import PROGRESS
@@ -180,7 +180,7 @@ class SlurmLauncher(SubmititSlurmLauncher):
         return _no_result(overrides, status, error)
 
     def _job_line(self, num: int, ret: JobReturn, seconds: float) -> None:
-        """The sweep's line for a job that ended (hybrid_sysid.cli.progress); its seconds count from the submission,
+        """The sweep's line for a job that ended (hybrid_sysid.launch.progress); its seconds count from the submission,
         time in the queue included. The job's own line went to its SLURM log."""
         try:
             header, done = count_done(Path(str(self.config.hydra.sweep.dir)) / PROGRESS, num)

@@ -29,8 +29,8 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from hybrid_sysid.cli.job import task_config
-from hybrid_sysid.cli.process import fail, sweep_stopped
+from hybrid_sysid.launch.job import task_config
+from hybrid_sysid.launch.process import fail, sweep_stopped
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.search import StudySettings, sampler_for, study_settings
@@ -75,9 +75,9 @@ def run_study(config: DictConfig, launcher, settings: dict, arguments: list[str]
 
 
 def open_study(s: StudySettings, sweep_dir: Path):
-    """The search's study, made or resumed (hybrid_sysid.cli.study: several searches starting at once on one
+    """The search's study, made or resumed (hybrid_sysid.launch.study: several searches starting at once on one
     storage; one search per study)."""
-    from hybrid_sysid.cli.study import open_owned
+    from hybrid_sysid.launch.study import open_owned
 
     return open_owned(s, s.storage or f"sqlite:///{sweep_dir / STUDY_FILE}", sweep_dir if s.storage else None, _own)
 

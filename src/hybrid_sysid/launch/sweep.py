@@ -1,7 +1,7 @@
 """The Hydra callback that ends every sweep with its comparison table, and prints its progress on the way.
 
 Hydra skips on_multirun_end when a job raised, and with the joblib launcher job callbacks run in worker
-processes; so jobs record their own failure and return normally (hybrid_sysid.cli.job), and the summary here is
+processes; so jobs record their own failure and return normally (hybrid_sysid.launch.job), and the summary here is
 built from the run records on disk alone (hybrid_sysid.report.summary). A sweep with a failed job still exits
 non-zero. What an experiment adds to its table (figures, a table of its searches) comes with the summary
 (hybrid_sysid.report.extras).
@@ -10,7 +10,7 @@ Options, set under hydra.callbacks.sweep_summary: ``reproduction: true`` (conf/e
 writes reproduction.md, the paper's figures beside ours; ``compare``: the row key the table's marks compare
 (default: objective when swept); ``exclude``: glob patterns of run names the table leaves out
 (conf/experiment/tuned.yaml: its search trials). Other splits, metrics and the LaTeX table are one
-``hybrid-sysid-report`` away. What a job logs goes to its own log file (hybrid_sysid.cli.console).
+``hybrid-sysid-report`` away. What a job logs goes to its own log file (hybrid_sysid.launch.console).
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
-from hybrid_sysid.cli.process import PROCESS
-from hybrid_sysid.cli.progress import count_done, header_of, job_line, mark_start, record_of, start_line
-from hybrid_sysid.cli.time_left import work_seconds
+from hybrid_sysid.launch.process import PROCESS
+from hybrid_sysid.launch.progress import count_done, header_of, job_line, mark_start, record_of, start_line
+from hybrid_sysid.launch.time_left import work_seconds
 from hybrid_sysid.core.words import count
 from hybrid_sysid.runs.layout import PROGRESS
 

@@ -1,6 +1,6 @@
 """A search's study opened in its storage (hydra.sweeper.storage) when several searches may start at once, on one
 machine or on several that share the database. A study belongs to one search, whose one process asks for its trials
-and spreads them through its launcher (hybrid_sysid.cli.search); a second search on it is refused in one line. What
+and spreads them through its launcher (hybrid_sysid.launch.search); a second search on it is refused in one line. What
 must not happen is a start-up race that ends in a database's traceback, or in two searches both taking one study.
 
 - SQLite: the tables and the study are made under a file lock beside the database file, so searches that start
@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from hybrid_sysid.cli.process import fail
+from hybrid_sysid.launch.process import fail
 
 ATTEMPTS = 5  # tries at making a server's tables, while another process may be making them
 CLAIM_WAIT = 10.0  # seconds a search waits for the maker of a study it found to take it

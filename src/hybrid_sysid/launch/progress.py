@@ -1,6 +1,6 @@
 """A sweep's console: a line at its start (how many jobs, how many at a time), then one line per finished job: its
 number of the total, its swept values, its headline error (test split, the lowest noise level and K, p1 and p2),
-its time, the sweep's elapsed time and an estimate of the time left (hybrid_sysid.cli.time_left). The jobs write
+its time, the sweep's elapsed time and an estimate of the time left (hybrid_sysid.launch.time_left). The jobs write
 their starts and ends to the sweep directory's ``.progress`` (runs.layout.PROGRESS), one lock at a time, since
 parallel workers print their own lines: a JSON header, then one JSON line per event."""
 
@@ -17,7 +17,7 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.cli.time_left import estimate
+from hybrid_sysid.launch.time_left import estimate
 from hybrid_sysid.core.words import count
 
 MAX_KINDS = 100_000  # jobs: a longer sweep's header names no kinds (its estimate then treats jobs alike)
