@@ -3,7 +3,7 @@ level, least squares dashed, the values the mean over seeds of what the runs rec
 
 import numpy as np
 
-from hybrid_sysid.experiments.anchored_report import FLOOR, anchored_figure
+from hybrid_sysid.report.anchored_figure import FLOOR, anchored_figure
 from hybrid_sysid.report.summary import write_summary
 
 from helpers.evaluation_fakes import known_results, make_run

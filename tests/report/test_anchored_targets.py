@@ -1,4 +1,4 @@
-"""experiment=anchored's targets table (experiments/anchored_targets.py): runs whose per-recording deviations are
+"""experiment=anchored's targets table (report/anchored_targets.py): runs whose per-recording deviations are
 a known factor of a reference's give that factor as the ratio, its interval and the goal's verdict; the reference
 "best classical" is the classical fit with the lowest mean; a fault's noise-free goal asks exactness where the
 fixed fit is exact."""
@@ -8,7 +8,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
-from hybrid_sysid.experiments.anchored_targets import ratio_interval, targets_markdown
+from hybrid_sysid.report.anchored_targets import ratio_interval, targets_markdown
 
 from helpers.evaluation_fakes import known_results, make_run
 

@@ -13,13 +13,13 @@ import numpy as np
 import pandas as pd
 from matplotlib.colors import to_rgba
 
-from hybrid_sysid.experiments.tuned_report import tuning_figure
 from hybrid_sysid.report.collect import load_runs
 from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.run_figures import write_run_figures
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.sweep_figures import DODGE
 from hybrid_sysid.report.tables import summary_table
+from hybrid_sysid.report.tuning import tuning_figure
 
 from helpers.evaluation_fakes import NOISES, OBJECTIVES, PARAMS, known_results, make_run, parse_markdown, plain
 

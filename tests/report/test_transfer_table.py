@@ -5,10 +5,11 @@ import numpy as np
 import pytest
 from matplotlib.container import BarContainer
 
-from hybrid_sysid.experiments.transfer_report import transfer_figure
 from hybrid_sysid.report.collect import load_runs
+from hybrid_sysid.report.summary import tested_table as with_extras
 from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.tables import compare_marks, summary_table
+from hybrid_sysid.report.tables import compare_marks
+from hybrid_sysid.report.transfer_figure import transfer_figure
 
 from helpers.evaluation_fakes import PARAMS, known_results, make_run
 
@@ -34,7 +35,7 @@ def make_transfer_sweep(root):
 
 def test_rows_are_scenario_and_row_compared_within_a_scenario(tmp_path):
     root, df = load_runs(make_transfer_sweep(tmp_path / "sweep"))
-    table = summary_table(df)
+    table = with_extras(df, root)  # with what experiment=transfer adds: its marks compare the rows
     assert list(table.index.names) == ["scenario", "row"]
     assert table.loc[("seat_shift", ROWS[0]), (0.0, "p1", "mean")] == 0.1905
     marks = compare_marks(table)  # the compared level defaults to "row"

@@ -11,7 +11,7 @@ import pandas as pd
 from hybrid_sysid.core.files import ESCAPED, write_atomic
 from hybrid_sysid.report import sweep_figures
 from hybrid_sysid.report.collect import load_predictions, load_runs, row_keys
-from hybrid_sysid.report.extras import extras_of
+from hybrid_sysid.report.extras import extras_for, extras_of
 from hybrid_sysid.report.latex import to_latex
 from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.stats import K_LEVEL
@@ -77,8 +77,9 @@ def _curves(df: pd.DataFrame, root: Path) -> pd.DataFrame:
 def tested_table(df: pd.DataFrame, root: Path, split: str = "test", metric: str = "mean_rel_dev") -> pd.DataFrame:
     """summary_table of collect's long form, with attrs["paired"]: the per-recording deviations its marks test
     (tables.paired_deviations; read from the runs' predictions.csv under root) when the metric is
-    mean_rel_dev."""
+    mean_rel_dev, and attrs["extras"]: what the runs' experiment adds (report.extras)."""
     table = summary_table(df, split=split, metric=metric)
+    table.attrs["extras"] = extras_for(df, table)
     if metric == "mean_rel_dev":
         table.attrs["paired"] = paired_deviations(load_predictions(root, df, split), df, table)
         table.attrs["bound"] = bound_table(df, split)  # the robustness figure's dashed line

@@ -24,7 +24,6 @@ import pandas as pd
 from hybrid_sysid.core.checks import bad
 from hybrid_sysid.core.options import METRICS
 from hybrid_sysid.report.collect import natural_key, row_keys
-from hybrid_sysid.report.extras import extras_of
 from hybrid_sysid.report.stats import ALPHA, CONFIDENCE, K_LEVEL, NO_KEYS, paired_p, t_interval
 
 BEST, WORSE, WITHIN, UNKNOWN = "best", "worse", "within", "unknown"
@@ -115,14 +114,14 @@ def cell_columns(table: pd.DataFrame) -> list[tuple]:
 
 def compared_level(table: pd.DataFrame, compare: str | None = None) -> str | None:
     """The index level whose values are compared: ``compare`` if given, else ``objective`` when it is a level,
-    else the one an experiment's additions name (report/extras.py) when it is one, else the first level that is
-    not K. None for the single "all" row."""
+    else the one an experiment's additions name (report/extras.py, in attrs["extras"]: report.summary.tested_table)
+    when it is one, else the first level that is not K. None for the single "all" row."""
     names = [str(n) for n in table.index.names]
     if compare is not None:
         if compare not in names:
             bad("compare", compare, f"a row key of the table: {', '.join(names)}")
         return compare
-    for preferred in ("objective", *(e.compare for e in extras_of(table) if e.compare)):
+    for preferred in ("objective", *(e.compare for e in table.attrs.get("extras", ()) if e.compare)):
         if preferred in names:
             return preferred
     candidates = [n for n in names if n not in (K_LEVEL, NO_KEYS)]

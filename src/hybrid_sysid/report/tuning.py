@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.report.extras import Extra, register
 from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
@@ -81,6 +80,3 @@ def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "me
         noise_axis(ax, levels, METRICS[metric], param)
     figure_legend(fig)
     save_figure(fig, path, f"tuning: test split, K = {k}, mean ± std over seeds (dashed: default values)")
-
-
-register(Extra(TUNING, figures={"tuning": tuning_figure}, markdown=tuning_markdown))

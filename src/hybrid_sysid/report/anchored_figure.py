@@ -1,6 +1,6 @@
 """What experiment=anchored adds to its table's report (report.extras): the error against noise, one line per
-estimator, the least-squares rows dashed, one row of panels per fault and one panel per parameter; and the label-free
-anchored estimators' targets (experiments.anchored_targets)."""
+estimator, the least-squares rows dashed, one row of panels per fault and one panel per parameter. Its other
+addition, the label-free anchored estimators' targets, is report.anchored_targets."""
 
 from __future__ import annotations
 
@@ -8,8 +8,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.experiments.anchored_targets import targets_markdown
-from hybrid_sysid.report.extras import Extra, register
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
 
@@ -61,14 +59,3 @@ def anchored_figure(table: pd.DataFrame, path: Path, k: int = 1) -> None:
             noise_axis(ax, levels, METRICS["mean_rel_dev"], title)
     figure_legend(fig, ncol=4)
     save_figure(fig, path, f"anchored: test split, K = {k}, mean ± std over seeds (below {FLOOR:g}% drawn at it)")
-
-
-register(
-    Extra(
-        ESTIMATOR,
-        figures={"anchored": anchored_figure},
-        markdown=targets_markdown,
-        compare=ESTIMATOR,
-        paper_car=False,
-    )
-)

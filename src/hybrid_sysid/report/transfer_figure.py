@@ -8,7 +8,6 @@ from pathlib import Path
 
 import pandas as pd
 
-from hybrid_sysid.report.extras import Extra, register
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
 
@@ -55,6 +54,3 @@ def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int 
     axes[0, 0].set_ylabel(percent(METRICS["mean_rel_dev"]))
     figure_legend(fig)
     save_figure(fig, path, f"transfer: test split, noise std {noise:g}, K = {k}, mean ± std over seeds")
-
-
-register(Extra(SCENARIO, figures={"scenarios": transfer_figure}, compare=ROW, paper_car=False))
