@@ -8,7 +8,8 @@ PARAMETERS = ("p1", "p2")
 
 
 def relative_deviation(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
-    """(n, 2) -> (n, 2): |p - p_pred| / p."""
+    """|p - p_pred| / p (eq. 24) element by element: (n, 2) per window and parameter, or (n,) of one parameter.
+    The scores, tables and figures all compute it here."""
     pred, true = np.asarray(pred, dtype=np.float64), np.asarray(true, dtype=np.float64)
     return np.abs(true - pred) / np.abs(true)
 

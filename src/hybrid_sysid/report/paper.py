@@ -19,6 +19,7 @@ import numpy as np
 import pandas as pd
 
 from hybrid_sysid.core.files import ESCAPED, write_atomic
+from hybrid_sysid.model.metrics import relative_deviation
 from hybrid_sysid.report.collect import load_runs, natural_key, row_keys, run_choices
 from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.protocol import protocol
@@ -90,9 +91,9 @@ PAPER_PROTOCOL: dict[str, str] = {
 def constant_guess(m3_min: int = 50, m3_max: int = 200) -> float:
     """The lowest mean relative deviation a single constant prediction can score when m3 is uniform on the
     integers [m3_min, m3_max]: for p = c / m3, |p - q| / p = |1 - k m3| with k = q / c, minimised over k (a
-    weighted median, found among the candidates k = 1 / m3). Same for p1 and p2."""
+    weighted median, found among the candidates k = 1 / m3). Same for p1 and p2, so c = 1 here."""
     m = np.arange(m3_min, m3_max + 1, dtype=np.float64)
-    return float(min(np.abs(1 - m / mk).mean() for mk in m))
+    return float(min(relative_deviation(1 / mk, 1 / m).mean() for mk in m))
 
 
 LEGEND = (

@@ -12,7 +12,7 @@ from matplotlib.lines import Line2D
 from matplotlib.patches import Patch
 
 from hybrid_sysid.core.files import write_atomic
-from hybrid_sysid.model.metrics import PARAMETERS
+from hybrid_sysid.model.metrics import PARAMETERS, relative_deviation
 from hybrid_sysid.report.plotting import PERCENT, curves_figure, figure_legend, percent, save_figure
 from hybrid_sysid.runs.layout import CURVES, FIGURES, PREDICTIONS
 from hybrid_sysid.runs.rundir import RunDir
@@ -39,7 +39,7 @@ def predictions_figure(test: pd.DataFrame, path: Path, title: str) -> None:
                 sub = at[at["windows"] == k]
                 true, est = sub[f"{name}_true"].to_numpy(), sub[f"{name}_pred"].to_numpy()
                 order = np.argsort(true, kind="stable")
-                devs[k] = PERCENT * np.abs(true - est) / true
+                devs[k] = PERCENT * relative_deviation(est, true)
                 curve.plot(est[order], ".", color=colours[k], ms=2, label=f"K = {k}")
             edges = np.histogram_bin_edges(np.concatenate(list(devs.values())), bins=40)
             for k, dev in devs.items():
