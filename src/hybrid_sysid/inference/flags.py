@@ -25,7 +25,7 @@ from omegaconf import DictConfig
 from hybrid_sysid.config.resolvers import p_prior
 from hybrid_sysid.core.words import count
 from hybrid_sysid.data.dataset import generate_dataset
-from hybrid_sysid.data.spec import DatasetSpec
+from hybrid_sysid.data.spec import DatasetSpec, window_starts
 from hybrid_sysid.physics import QuarterCar
 
 RANGE, CHANNELS, RUN_ERROR = "range", "channels", "run_error"
@@ -147,7 +147,7 @@ class ChannelReference:
         n, w = self.signals.shape[-1], self.window
         k = min(k, REF_K_MAX, n - w + 1)
         if k not in self._bounds:
-            starts = np.arange(k) * (n - w) // max(k - 1, 1)
+            starts = window_starts(n, w, k)
             windows = np.stack([self.signals[:, :, s : s + w] for s in starts], axis=1)  # (n, K, 2, w)
             rng = np.random.default_rng([self.seed, 27, k])
             features = np.concatenate(
