@@ -98,7 +98,7 @@ def delayed_copies(x: np.ndarray, delays: np.ndarray, half_width: int = 32):
 
     Every row shares the delay, so the taps are one filter: x's spectrum is taken once and each copy is one
     product and one inverse FFT, where fractional_delay sums 2 half_width + 1 shifted arrays per call. With the
-    seat filtered once, the skew search runs 1.6x faster on 1000 windows of 500 samples (AMD EPYC)."""
+    seat filtered once, it makes the skew search faster (benchmarks/README.md, "Summary")."""
     from hybrid_sysid.physics.sensors import delay_taps
 
     whole, taps = delay_taps(delays, half_width)

@@ -23,13 +23,13 @@ step_inline = numba.njit(inline="always")(step)
 # Recordings stepped side by side in one thread, as a loop over lanes that LLVM turns into SIMD instructions
 # (four float64 lanes per instruction on AVX2 and AVX-512 alike). One recording's step is a chain of ~20
 # dependent operations: four vectors' worth of independent chains keep the core busy while each chain waits.
-# With 4 or 8 lanes the compiler unrolls the loop instead and it stays scalar, twice as slow; 32 are 20% slower.
+# With 4 or 8 lanes the compiler unrolls the loop instead and it stays scalar. 16 is the fastest count measured
+# (benchmarks/README.md, "Dataset generation").
 LANES = 16
 # Time steps staged per block on their way to the outputs: the stepping is lane-major and the outputs are
 # recording-major, so each block transposes through a small buffer. 128 steps: 32 KB of float32 outputs and 16 KB
-# of road, about an L1, and each output row written 512 bytes at a time. At paper size into fresh arrays (as
-# generate_dataset writes) 64 steps were 10% slower, 256 7% slower and 512 20% slower; into reused arrays 64 were
-# 45% slower and 256 12% faster.
+# of road, about an L1, and each output row written 512 bytes at a time; the fastest size measured into fresh
+# arrays, as generate_dataset writes (benchmarks/README.md, "Dataset generation").
 CHUNK = 128
 
 

@@ -5,7 +5,7 @@ bit. ``simulate_faulted`` simulates blocks of recordings in float64 (physics.com
 each recording's faults on its two channels while they are in the cache, re-integrates them with
 ``relative_states``' arithmetic, and writes the four float32 channels once (tests/physics/test_sensors.py and
 tests/data/test_sensor_faults.py check both against the numpy path). Doing all of it per block, rather than array
-by array, keeps a dataset with every fault within 1.5x of one without (benchmarks/fault_generation.py).
+by array, keeps the faults' cost near the plain dataset's (benchmarks/README.md, "Sensor faults").
 Like physics.compiled, imported only by hybrid_sysid.data and the tests.
 """
 

@@ -16,9 +16,8 @@ itself gives it, so MAP is drawn towards the prior's mean but not onto it unless
 the window (the signal at 1e-3 of its size under noise 0.01, with the prior of ``log_p_prior`` for the data's
 draws: 0.3-4 prior stds from its mean, ML 5-9; with that prior's std cut to a tenth, within 0.6 of one).
 
-Measured on one core (400 windows of 500 samples, noise 0.01 on both channels, started at the band-passed least
-squares; best of 3 on a shared machine): ML 0.10 s discrete, 0.14 s continuous; MAP (ML then MAP) 0.20 and 0.23 s.
-From the box centre ML takes 0.26 s; the band-passed least squares 0.02 s.
+The fits start at the band-passed least squares: from the box's centre ML takes longer (benchmarks/README.md, "The
+classical fits against the Cramér-Rao bound", times both).
 """
 
 from __future__ import annotations
