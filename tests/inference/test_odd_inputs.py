@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.core.checks import ConfigError
-from hybrid_sysid.inference import readers
+from hybrid_sysid.data import readers
 from hybrid_sysid.inference.inputs import InputError
 from hybrid_sysid.runs.rundir import RunDir
 

@@ -101,7 +101,7 @@ def validate_saved(cfg: DictConfig, run_dir: Path) -> None:
     """Every check of a command line (config.validate) on the config to evaluate; what no check foresaw (a
     saved section cut short, a value of another type) is a ConfigError naming the run."""
     try:
-        validate(cfg)
+        validate(cfg, trains=False)  # its network is trained: a labelled one may score a user's unlabelled files
     except ConfigError:
         raise
     except Exception as exc:  # noqa: BLE001 - a damaged saved config breaks the checks in any way

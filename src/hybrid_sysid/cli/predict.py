@@ -114,7 +114,7 @@ def write_new(path: Path, write) -> None:
 
 
 def read_input(path: Path, dt: float | None):
-    from hybrid_sysid.inference.readers import read_input as read
+    from hybrid_sysid.data.readers import read_input as read
 
     return read(path, dt)
 

@@ -16,6 +16,7 @@ from dataclasses import asdict, fields
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config import recordings_checks
 from hybrid_sysid.config.memory import check_memory
 from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.config.schema import SECTIONS
@@ -57,10 +58,10 @@ def config_key(key: str) -> str:
     return CONFIG_PATHS.get(key, f"data.{key}")
 
 
-def validate(cfg: DictConfig, training: bool = True) -> None:
+def validate(cfg: DictConfig, training: bool = True, trains: bool = True) -> None:
     """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed.
-    ``training=False``: a received run's saved config read to estimate with it, without what only training on
-    this machine needs (its loggers and callbacks installed, its dataset in memory)."""
+    ``training=False``: a received run's saved config read to estimate with, without what only training here
+    needs (loggers, callbacks, the dataset in memory, data.path's files). ``trains=False``: an evaluation."""
     _check_known_keys(cfg)
     # typed values (derived ones are checked later); the car's constants have their own check
     _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
@@ -87,7 +88,8 @@ def validate(cfg: DictConfig, training: bool = True) -> None:
     spec = DatasetSpec.from_config(cfg)
     with _placed():
         BatchSettings(cfg.model.batch_size, cfg.noise.train_std, cfg.noise.get("train_std_max")).validate()
-        spec.validate()  # its stability search of the time step last: the one check that costs
+        spec.validate_values() if cfg.data.get("path") else spec.validate()  # its stability search: the one that costs
+    spec = recordings_checks.checked(cfg, spec, training, trains)  # data=recordings: its files (else spec as is)
     if cfg.get("baseline") is not None:  # each checks the window against what it reads
         _validate_baseline(cfg, spec)
     else:

@@ -61,6 +61,11 @@ class ConfigError(ValueError):
         return self.with_key(f"{prefix}.{self.key}")
 
 
+class InputError(ConfigError):
+    """Input a command cannot use: a recording a user brings (data.readers), or what the estimator is given
+    (inference). A ConfigError: key, value and what is allowed."""
+
+
 def bad(key: str, value, allowed: str):
     """Raise ConfigError(key, value, allowed)."""
     raise ConfigError(key, value, allowed)

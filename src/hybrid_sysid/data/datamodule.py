@@ -102,6 +102,12 @@ class QuarterCarDataModule(L.LightningDataModule):
         """How many window starts a recording offers."""
         return self.settings.n_starts(self.spec)
 
+    def cutter(self, split: str) -> WindowCutter:
+        """The windows of a split's recordings: here one cutter over the whole dataset; a module that holds one
+        split at a time (data.recordings) gives that split's."""
+        self.setup()
+        return self.data
+
     def eval_batch(
         self, split: str, noise_std: float = 0.0, limit: int | None = None, windows: int = 1
     ) -> dict[str, torch.Tensor]:
@@ -122,20 +128,16 @@ class QuarterCarDataModule(L.LightningDataModule):
         key = (split, float(noise_std), limit, int(windows))
         if key in self._eval_cache:
             return self._eval_cache[key]
-        self.setup()
+        data = self.cutter(split)
         rows = self.rows(split)
         code = SPLITS.index(split)
         rng = np.random.default_rng([self.seed, code])
-        starts = rng.integers(0, self.n_starts(), size=len(rows))
+        starts = rng.integers(0, data.starts_bound(rows), size=len(rows))
         base = rng.standard_normal((len(rows), 2, self.window)) if noise_std > 0 else None
         # drawn after the window's noise, so that noise is the same whatever the integration
-        state = (
-            None
-            if base is None
-            else start_state(starts, self.data.dt, rng.standard_normal((len(rows), 2)), self.data.rule)
-        )
+        state = None if base is None else start_state(starts, data.dt, rng.standard_normal((len(rows), 2)), data.rule)
         if windows > 1:
-            starts, base, state = self._more_windows(rows, code, starts, base, windows)
+            starts, base, state = self._more_windows(data, rows, code, starts, base, windows)
         if limit is not None:
             rows, starts = rows[:limit], starts[:limit]
             base = None if base is None else base[:limit]
@@ -145,33 +147,33 @@ class QuarterCarDataModule(L.LightningDataModule):
             base = None if base is None else base.reshape(-1, 2, self.window)
             state = None if state is None else state.reshape(-1, 2)
         if base is None:
-            batch = self.data.batch(rows, starts)
+            batch = data.batch(rows, starts)
         else:
-            batch = self.data.batch(rows, starts, noise_std * base, noise_std * state)
-        if self.data.outside is not None:
+            batch = data.batch(rows, starts, noise_std * base, noise_std * state)
+        if data.outside is not None:
             normals = None
             if noise_std > 0:  # the first rows of the split's draw: a limited batch is a prefix of the full one
                 n = len(rows) // windows
                 g = np.random.default_rng([self.seed, code, 3000])
                 normals = np.repeat(g.standard_normal((n, 2, self.spec.n_steps), dtype=np.float32), windows, axis=0)
-            batch.update(self.data.outside.fit(rows, starts, noise_std, normals))
+            batch.update(data.outside.fit(rows, starts, noise_std, normals))
         if windows == 1:  # K > 1 serves the final evaluation once; keep only K = 1 (curves reuse it)
             self._eval_cache[key] = batch
         return batch
 
-    def _more_windows(self, rows, code, starts0, base0, k):
+    def _more_windows(self, data, rows, code, starts0, base0, k):
         """(n, K) starts, (n, K, 2, window) standard-normal noise cut from one series-long draw per recording
         and (n, K, 2) the state that noise, integrated from t0 by the recording's rule, has reached at each start
         (``start_state``'s (V, X), by its convention for that rule); column 0 starts where the K = 1 window does."""
-        n = len(rows)
+        n, high = len(rows), data.starts_bound(rows)
         starts = np.empty((n, k), dtype=np.int64)
         starts[:, 0] = starts0
         for j in range(1, k):
             g = np.random.default_rng([self.seed, code, 100, j])
-            s = g.integers(0, self.n_starts(), size=n)
+            s = g.integers(0, high, size=n)
             clash = (s[:, None] == starts[:, :j]).any(axis=1)
             while clash.any():  # redraw clashing starts only; ends as K <= the number of starts
-                s[clash] = g.integers(0, self.n_starts(), size=int(clash.sum()))
+                s[clash] = g.integers(0, high if np.isscalar(high) else high[clash], size=int(clash.sum()))
                 clash = (s[:, None] == starts[:, :j]).any(axis=1)
             starts[:, j] = s
         if base0 is None:
@@ -183,8 +185,8 @@ class QuarterCarDataModule(L.LightningDataModule):
         cols = starts[:, :, None] + np.arange(self.window)  # (n, K, window)
         base = np.stack([np.take_along_axis(series[:, c], cols.reshape(n, -1), axis=1) for c in (0, 1)], axis=1)
         diff = series[:, 0].astype(np.float64) - series[:, 1]
-        vel, pos = integrate(diff, self.data.dt)
-        if self.data.rule == "symplectic":
+        vel, pos = integrate(diff, data.dt)
+        if data.rule == "symplectic":
             before = np.maximum(starts - 1, 0)
             state = np.stack(
                 [
@@ -196,7 +198,7 @@ class QuarterCarDataModule(L.LightningDataModule):
         else:
             # the trapezoid rule's (V, X) are symplectic Euler's sums at s, dt sum_{j<s} d_j and dt^2 sum_{j<s}
             # (s - j) d_j, with the first sample d_0 weighted dt / 2 and dt^2 (2s - 1) / 4 instead
-            dt, first = self.data.dt, diff[:, :1]
+            dt, first = data.dt, diff[:, :1]
             v = np.take_along_axis(vel, starts, axis=1) - dt / 2 * first
             x = np.take_along_axis(pos, starts, axis=1) - dt**2 * (2 * starts + 1) / 4 * first
             state = np.where((starts > 0)[..., None], np.stack([v, x], axis=-1), 0.0)

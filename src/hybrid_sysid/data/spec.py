@@ -59,6 +59,12 @@ class DatasetSpec:
         """ConfigError naming the field (``car.<constant>`` for the car's), the value and what is allowed, before
         any work: the choices first, then each value once, then what depends on several of them, and last the
         stability search of the time step (the one check that costs)."""
+        self.validate_values()
+        self.validate_simulation()
+
+    def validate_values(self) -> None:
+        """``validate``'s checks of each value, without those of simulating (a user's recordings need only
+        these: their step, measurement, car and prior range of p)."""
         check_choice("measurement", self.measurement, MEASUREMENTS)
         if not self.road_classes:
             bad("road_classes", list(self.road_classes), f"a non-empty list of classes from {', '.join(ROAD_CLASSES)}")
@@ -89,6 +95,10 @@ class DatasetSpec:
                 self.car.seat_hardening,
                 "0 with data.measurement = continuous: its exact solution is of the linear car (physics.exact)",
             )
+
+    def validate_simulation(self) -> None:
+        """``validate``'s checks of what only a simulation reads: the sensor faults, and the time step against
+        the road's content (continuous) or the scheme's stability (stepped)."""
         self.sensor.validate(self.dt)
         if self.measurement not in STEPPED:  # exact samples of the continuous motion: the road is not sampled
             top = float(OMEGA_M) * self.speed / (2 * math.pi)  # the road's highest frequency at this speed, Hz

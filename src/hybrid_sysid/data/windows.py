@@ -121,6 +121,8 @@ class WindowCutter:
         self.rel_vel, self.rel_disp = _windows(ds.rel_vel, window), _windows(ds.rel_disp, window)
         self.params = torch.from_numpy(ds.params.astype(np.float32))
         self.n_steps = ds.seat_acc.shape[1]
+        # each recording's own length when they differ (a user's, zero-padded to the longest: data.recordings)
+        self.lengths = getattr(ds, "lengths", None)
         self.outside = None
         if outside_fir is not None:
             self.outside = OutsideFit(
@@ -138,6 +140,13 @@ class WindowCutter:
             self.filtered = [
                 _windows(fir_valid(a, fir).astype(np.float32), short) for a in (ds.seat_acc, ds.rel_vel, ds.rel_disp)
             ]
+
+    def starts_bound(self, rows: np.ndarray):
+        """How many window starts each row's recording offers: one number for recordings of one length, else one
+        per row (an upper bound for numpy's Generator.integers either way)."""
+        if self.lengths is None:
+            return self.n_steps - self.window + 1
+        return self.lengths[np.asarray(rows, dtype=np.int64)] - self.window + 1
 
     def batch(
         self, rows, starts, noise: np.ndarray | None = None, state: np.ndarray | None = None
@@ -248,7 +257,7 @@ class RandomWindows(IterableDataset):
     def one_pass(self, e: int, skip: int = 0) -> Iterator[dict[str, torch.Tensor]]:
         rng = np.random.default_rng(self._key(1000 + e))
         order = rng.permutation(self.rows)
-        starts = rng.integers(0, self.data.n_steps - self.data.window + 1, size=len(order))
+        starts = rng.integers(0, self.data.starts_bound(order), size=len(order))
         for b in range(skip, self.batches_per_pass):
             sl = slice(b * self.batch_size, (b + 1) * self.batch_size)
             noise = state = None

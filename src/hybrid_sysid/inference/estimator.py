@@ -23,6 +23,7 @@ from scipy.signal import resample_poly
 
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT
+from hybrid_sysid.data.readers import DT_RTOL
 from hybrid_sysid.data.spec import window_starts
 from hybrid_sysid.inference import flags as F
 from hybrid_sysid.inference.inputs import EstimateWarning, InputError, check_estimates, check_values, recordings
@@ -30,7 +31,6 @@ from hybrid_sysid.inference.memory import CHUNK, check_window_memory
 from hybrid_sysid.model.base import Baseline
 from hybrid_sysid.physics import QuarterCar
 
-DT_RTOL = 1e-9  # a recording's dt counts as the run's data.dt within this relative difference
 # The resampling ratio is a fraction with a denominator up to MAX_DENOMINATOR; the rate it gives may miss the
 # run's rate by RATIO_RTOL. A time scale off by e scales p1 by (1 + e) and p2 by (1 + e)^2: 1e-4 is far below
 # what any trained estimator resolves.

@@ -6,13 +6,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybrid_sysid.core.checks import ConfigError, Shown
+from hybrid_sysid.core.checks import InputError, Shown  # InputError: core's, so data.readers raises it too
 
 FLOAT32_MAX = float(np.finfo(np.float32).max)  # the network reads float32: larger magnitudes become inf
-
-
-class InputError(ConfigError):
-    """Input the estimator cannot use (a ConfigError: key, value and what is allowed)."""
 
 
 class EstimateWarning(UserWarning):

@@ -3,8 +3,10 @@ machine's environment or files, and nothing in it says where this machine writes
 
 ``as_data`` replaces its ``paths`` section and its ``data.cache_dir`` by this machine's (the schema's defaults,
 which a command's own overrides then change), and refuses any interpolation through a resolver other than those
-that read the config alone. ``${oc.env:...}`` would be resolved on first access, and an error then would echo the
-variable's value; a received cache or output path would be written to by eval, predict or init_from.
+that read the config alone. Its ``data.path`` and ``data.labels`` (a user's recordings: files of the machine it ran
+on) become values that read no file, until a command names the files again. ``${oc.env:...}`` would be
+resolved on first access, and an error then would echo the variable's value; a received cache or output path
+would be written to by eval, predict or init_from.
 """
 
 from __future__ import annotations
@@ -32,6 +34,10 @@ def as_data(cfg: DictConfig) -> DictConfig:
         cfg[LOCAL] = OmegaConf.to_container(OmegaConf.structured(PathsConfig))
     if isinstance(cfg.get("data", None), DictConfig) and "cache_dir" in cfg.data:
         cfg.data.cache_dir = "${paths.cache_dir}"  # this machine's cache: a received one is never written to
+    if isinstance(cfg.get("data", None), DictConfig) and cfg.data.get("path") is not None:
+        from hybrid_sysid.data.recordings_files import UNNAMED  # eval refuses it until data.path is given again
+
+        cfg.data.path, cfg.data.labels = UNNAMED, None
     for where, text in _strings(OmegaConf.to_container(cfg, resolve=False)):
         if where.split(".")[0] == LOCAL or "${" not in text:
             continue

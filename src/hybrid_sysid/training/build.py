@@ -35,6 +35,10 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
     if cfg.data.get("module") is not None:  # a data module of its own class (a plugin's: docs/extending.md)
         return data_module(cfg, objective)
     d = cfg.data
+    if d.get("path") is not None:  # a user's recordings (data=recordings), read from their files
+        from hybrid_sysid.training.recordings import recordings_datamodule
+
+        return recordings_datamodule(cfg, objective)
     return QuarterCarDataModule(
         DatasetSpec.from_config(cfg),
         cache_dir=d.cache_dir,

@@ -19,29 +19,30 @@ def score(
     """Relative deviations per split, noise level and K (test predictions averaged over K windows per
     recording; train and val on one window), plus one prediction row per recording and evaluation.
 
-    ``model``: a network's IdentificationModule or a baseline (model.base.SplitPredictor)."""
+    ``model``: a network's IdentificationModule or a baseline (model.base.SplitPredictor). A data module with a
+    ``reference`` (a user's recordings, data.recordings) names in every row what the deviations are measured
+    against: "labels", or the fit over the whole recording where the recordings have none."""
     results, frames, bounds = [], [], {}
+    reference = getattr(dm, "reference", None)
+    labels = {} if reference is None else {"reference": reference}
     evals = [("train", 0.0, 1), ("val", 0.0, 1)] + [("test", float(s), int(k)) for s in noise_levels for k in windows]
     for split, std, k in evals:
         stop.check()  # a safe point (core.stop)
         pred, true = model.predict_split(dm, split, std, windows=k)
-        rows = summarise(pred, true, split=split, noise_std=std, windows=k)
+        rows = summarise(pred, true, split=split, noise_std=std, windows=k, **labels)
         if split == "test":
             if k not in bounds:
                 bounds[k] = recording_bounds(dm, split, k)
             for row, fields in zip(rows, bound_fields(pred, true, std, *bounds[k])):
                 row.update(fields)
         results += rows
-        rows = dm.rows(split)
         frames.append(
             pd.DataFrame(
                 {
                     "split": split,
                     "noise_std": std,
                     "windows": k,
-                    "recording": rows,
-                    "road_class": dm.dataset.road_class[rows],
-                    "m3": dm.dataset.m3[rows],
+                    **recording_columns(dm, split),
                     "p1_true": true[:, 0],
                     "p1_pred": pred[:, 0],
                     "p2_true": true[:, 1],
@@ -50,6 +51,16 @@ def score(
             )
         )
     return results, pd.concat(frames, ignore_index=True)
+
+
+def recording_columns(dm, split: str) -> dict:
+    """predictions.csv's recording, road_class and m3 of a split's recordings: the data module's own (a user's
+    recordings keep their names), else the simulated dataset's."""
+    own = getattr(dm, "recording_columns", None)
+    if own is not None:
+        return own(split)
+    rows = dm.rows(split)
+    return {"recording": rows, "road_class": dm.dataset.road_class[rows], "m3": dm.dataset.m3[rows]}
 
 
 def recording_bounds(dm: QuarterCarDataModule, split: str, windows: int) -> tuple[np.ndarray, np.ndarray]:
@@ -96,4 +107,7 @@ def console_table(results: list[dict]) -> str:
     df = df[df.split != "val"]
     index = ["split", "noise_std"] + (["windows"] if df.get("windows", pd.Series([1])).ne(1).any() else [])
     table = df.pivot_table(index=index, columns="parameter", values="mean_rel_dev")
-    return (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
+    text = (table * 100).round(2).rename(columns=lambda c: f"{c} mean rel. dev. [%]").to_string()
+    if "reference" in df and (df.reference != "labels").any():  # a user's recordings without labels
+        text = f"deviations from the {df.reference.iloc[0]} (no labels), not from true values\n{text}"
+    return text

@@ -126,6 +126,7 @@ class Job:
             **provenance_fields(),  # the code and the processor that made the numbers, read once per process
             **plugin_fields(cfg),  # the plugin classes it was made with: opened without them, it names their package
             **outcome.record_fields(),
+            **getattr(outcome.dm, "record_fields", dict)(),  # a user's recordings: their files' fingerprint
         )
         stop.check()  # the last safe point before the run is final
         self.run.write_record(record)
@@ -246,7 +247,7 @@ def evaluate_checkpoint(
     car, road, noise or evaluation: hybrid_sysid.cli.evaluate), without training; write the record (naming the
     source run), predictions.csv and an empty curves.csv into ``run_dir``."""
     if not checked:
-        validate(cfg)
+        validate(cfg, trains=False)
     source = Path(source)
     if cfg.get("baseline") is not None:
         bad(

@@ -1,5 +1,6 @@
 """Recordings users bring, read from a CSV or .npz file (formats: docs/predict.md): seat and body accelerations,
-their names and sampling interval. Bad input raises InputError naming the file, the item and what is allowed."""
+their names and sampling interval. Bad input raises InputError naming the file, the item and what is allowed. Read by
+hybrid-sysid-predict and load_estimator (inference) and by data=recordings (data.recordings_files)."""
 
 from __future__ import annotations
 
@@ -13,11 +14,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.config.memory import tightest_memory
-from hybrid_sysid.core.checks import Shown
-from hybrid_sysid.inference.estimator import DT_RTOL
-from hybrid_sysid.inference.inputs import InputError
+from hybrid_sysid.core.checks import InputError, Shown
+from hybrid_sysid.core.memory import tightest_memory
 
+DT_RTOL = 1e-9  # a recording's dt counts as another's (a run's data.dt, a file's other recordings) within this
 CHANNELS = ("seat_acc", "body_acc")
 COLUMNS = (*CHANNELS, "time", "recording")  # the CSV columns read; any other is ignored
 # A time column's steps may each differ from their mean by this fraction: time stamps rounded to a few

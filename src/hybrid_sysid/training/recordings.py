@@ -1,0 +1,41 @@
+"""The data module of a config with data.path (``data=recordings``, data.recordings): a user's files, their labels
+when data.labels names some, and the errors-in-variables fit of each whole recording as the reference without."""
+
+from __future__ import annotations
+
+import numpy as np
+from omegaconf import DictConfig
+
+from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
+from hybrid_sysid.data.recordings import RecordingsDataModule
+from hybrid_sysid.data.recordings_files import index, split_recordings
+from hybrid_sysid.data.recordings_labels import read_labels
+
+
+def whole_recording_fit(seat: np.ndarray, body: np.ndarray, dt: float, measurement: str) -> np.ndarray:
+    """The errors-in-variables maximum-likelihood fit of whole recordings (n, steps), both channels noisy in the
+    simulator's ratio: estimator=eiv's fit (conf/baseline/eiv.yaml's defaults) over every sample."""
+    return ErrorsInVariablesFit(dt=dt).fit(seat, body, dt, measurement)
+
+
+def recordings_datamodule(cfg: DictConfig, objective=None) -> RecordingsDataModule:
+    """build_datamodule's, for data.path: ``objective`` the run's (None for a baseline)."""
+    d = cfg.data
+    idx = index(d.path)
+    labels = None if d.get("labels") is None else read_labels(d.labels, [r.name for r in idx.recordings])
+    return RecordingsDataModule(
+        idx,
+        split_recordings(len(idx.recordings), d.train_fraction, d.val_fraction, d.seed),
+        d.measurement,
+        whole_recording_fit,
+        labels,
+        window=d.window,
+        batch_size=cfg.model.batch_size,
+        train_std=cfg.noise.train_std,
+        seed=cfg.seed,
+        integration=d.integration,
+        fir=None if objective is None else objective.fir,
+        train_std_max=cfg.noise.get("train_std_max"),
+        outside_fir=None if objective is None else objective.outside_fir,
+        outside_target=getattr(objective, "outside_target", None),
+    )
