@@ -14,7 +14,7 @@ from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.training.run import train
 
-from helpers.recordings import seat_recordings, write_folder
+from helpers.recordings import seat_recordings, write_folder, write_labels
 
 DT = 0.005
 
@@ -94,3 +94,28 @@ def test_the_eiv_estimator_on_files_gives_the_fit_computed_here(tmp_path, window
         data = (folder / name).read_bytes()
         assert f["bytes"] == len(data) and f["sha256"] == hashlib.sha256(data).hexdigest()
     assert all(set(f) == {"name", "bytes", "sha256"} for f in files.values())  # a fingerprint, never the samples
+
+
+def test_a_labelled_run_on_files_scores_eq_24_against_the_labels(tmp_path, window_long):
+    """Labels as c3, k3 and m3: a labelled objective trains on them, and each test row is eq. 24 against
+    p = (c3, k3) / m3, computed here from the truth the files were simulated with."""
+    folder, names, _, _, p = window_long
+    m3 = 615.0 / p[:, 0]
+    labels = write_labels(tmp_path / "labels.csv", names, p, m3, form="c3k3m3")
+    args = ["data=recordings", f"data.path={folder}", f"data.labels={labels}", "data.window=200"]
+    record = run(tmp_path / "run", [*args, "objective=labelled", "trainer=debug", "trainer.max_steps=10"])
+    predictions = pd.read_csv(tmp_path / "run" / "predictions.csv", converters={"recording": str})
+    test = predictions[(predictions.split == "test") & (predictions.noise_std == 0)]
+    index = [names.index(r) for r in test.recording]
+    np.testing.assert_allclose(test[["p1_true", "p2_true"]].to_numpy(), p[index], rtol=1e-6)  # float32 labels
+    np.testing.assert_allclose(test.m3.to_numpy(), m3[index], rtol=1e-12)
+    deviation = np.abs(test[["p1_pred", "p2_pred"]].to_numpy() / p[index] - 1).mean(axis=0)
+    rows = {r["parameter"]: r for r in record["results"] if r["split"] == "test" and r["noise_std"] == 0}
+    np.testing.assert_allclose([rows["p1"]["mean_rel_dev"], rows["p2"]["mean_rel_dev"]], deviation, rtol=1e-5)
+    assert record["reference"] == "labels" and all(r["reference"] == "labels" for r in rows.values())
+    data = labels.read_bytes()
+    assert record["data_files"]["labels"] == {
+        "name": "labels.csv",
+        "bytes": len(data),
+        "sha256": hashlib.sha256(data).hexdigest(),
+    }

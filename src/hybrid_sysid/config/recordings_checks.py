@@ -38,6 +38,8 @@ def check_recordings(cfg: DictConfig, spec: DatasetSpec, training: bool = True, 
         bad("task", task, "train with data.path: transfer and tuned simulate their own data")
     if SensorFaults(**(cfg.get("sensor") or {})).active:
         bad("sensor", OmegaConf.to_container(cfg.sensor), "no simulated sensor faults with data.path (sensor=none)")
+    if cfg.data.get("module") is not None:
+        bad("data.module", Shown(str(cfg.data.module.get("_target_"))), "null with data.path: one data module a run")
     if cfg.get("baseline") is not None and cfg.baseline.get("span") == "series":
         bad("baseline.span", "series", "window with data.path (span: series reads a simulated dataset whole)")
     if not training:

@@ -96,8 +96,9 @@ def load_split(idx: RecordingsIndex, wanted: np.ndarray, spec: RecordedSpec, par
 
 class RecordingsDataModule(QuarterCarDataModule):
     """The recordings of data.path in windows (module docstring). ``labels``: (params (n, 2), m3 (n,)) in the
-    index's order, or None; ``reference``: the fit of whole recordings without labels (training.build passes the
-    errors-in-variables fit). The other arguments are QuarterCarDataModule's."""
+    index's order, or None, and ``labels_file`` their file's fingerprint; ``reference``: the fit of whole recordings
+    without labels (training.recordings passes the errors-in-variables fit). The other arguments are
+    QuarterCarDataModule's."""
 
     def __init__(
         self,
@@ -106,6 +107,7 @@ class RecordingsDataModule(QuarterCarDataModule):
         measurement: str,
         reference: Fit,
         labels: tuple[np.ndarray, np.ndarray] | None = None,
+        labels_file: dict | None = None,
         window: int = 500,
         batch_size: int = 64,
         eval_batch_size: int = 256,
@@ -121,6 +123,7 @@ class RecordingsDataModule(QuarterCarDataModule):
         self.batch_settings = BatchSettings(batch_size, train_std, train_std_max)
         self.batch_settings.validate()
         self.index, self.split, self.labels, self.reference_fit = idx, split, labels, reference
+        self.labels_file = labels_file
         self.spec = RecordedSpec(idx.dt, measurement, int(idx.steps.max()))
         self.dataset = DatasetView(self.spec)
         self.cache_dir, self.window = None, window
@@ -189,4 +192,7 @@ class RecordingsDataModule(QuarterCarDataModule):
 
     def record_fields(self) -> dict:
         """The record's account of the data: the files' fingerprint and what the scores measure against."""
-        return {"data_files": self.index.fingerprint(), "reference": self.reference}
+        files = self.index.fingerprint()
+        if self.labels_file is not None:
+            files["labels"] = self.labels_file
+        return {"data_files": files, "reference": self.reference}

@@ -76,6 +76,11 @@ def sha256(path: Path) -> str:
     return digest.hexdigest()
 
 
+def file_print(path: Path, name: str) -> dict:
+    """A file as the record names it: its name, size and sha256."""
+    return {"name": name, "bytes": path.stat().st_size, "sha256": sha256(path)}
+
+
 def as_data_error(exc: ConfigError) -> ConfigError:
     """A reader's InputError ("input = <file>: ...") under data.path, the key a user set."""
     key = exc.key
@@ -145,7 +150,7 @@ def scan(root: Path) -> RecordingsIndex:
                 )
             where[name] = relative
             recordings.append(Recorded(name, relative, len(seat)))
-        prints.append({"name": relative, "bytes": path.stat().st_size, "sha256": sha256(path)})
+        prints.append(file_print(path, relative))
     if not recordings:
         bad(KEY, Shown(str(root)), "files holding at least one recording")
     return RecordingsIndex(root, recordings, float(dt), prints)

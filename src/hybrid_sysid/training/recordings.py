@@ -3,12 +3,14 @@ when data.labels names some, and the errors-in-variables fit of each whole recor
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 from omegaconf import DictConfig
 
 from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
 from hybrid_sysid.data.recordings import RecordingsDataModule
-from hybrid_sysid.data.recordings_files import index, split_recordings
+from hybrid_sysid.data.recordings_files import file_print, index, split_recordings
 from hybrid_sysid.data.recordings_labels import read_labels
 
 
@@ -22,13 +24,17 @@ def recordings_datamodule(cfg: DictConfig, objective=None) -> RecordingsDataModu
     """build_datamodule's, for data.path: ``objective`` the run's (None for a baseline)."""
     d = cfg.data
     idx = index(d.path)
-    labels = None if d.get("labels") is None else read_labels(d.labels, [r.name for r in idx.recordings])
+    labels, labels_file = None, None
+    if d.get("labels") is not None:
+        path = Path(str(d.labels)).expanduser()
+        labels, labels_file = read_labels(path, [r.name for r in idx.recordings]), file_print(path, path.name)
     return RecordingsDataModule(
         idx,
         split_recordings(len(idx.recordings), d.train_fraction, d.val_fraction, d.seed),
         d.measurement,
         whole_recording_fit,
         labels,
+        labels_file,
         window=d.window,
         batch_size=cfg.model.batch_size,
         train_std=cfg.noise.train_std,
