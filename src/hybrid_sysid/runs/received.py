@@ -3,10 +3,10 @@ machine's environment or files, and nothing in it says where this machine writes
 
 ``as_data`` replaces its ``paths`` section and its ``data.cache_dir`` by this machine's (the schema's defaults,
 which a command's own overrides then change), and refuses any interpolation through a resolver other than those
-that read the config alone. Its ``data.path`` and ``data.labels`` (a user's recordings: files of the machine it ran
-on) become values that read no file, until a command names the files again. ``${oc.env:...}`` would be
-resolved on first access, and an error then would echo the variable's value; a received cache or output path
-would be written to by eval, predict or init_from.
+that read the config alone. ``${oc.env:...}`` would be resolved on first access, and an error then would echo the
+variable's value; a received cache or output path would be written to by eval, predict or init_from. Its
+``data.path`` and ``data.labels`` (a user's recordings: files of the machine it ran on) become values that read no
+file, until a command names the files again.
 """
 
 from __future__ import annotations
