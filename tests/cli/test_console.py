@@ -116,8 +116,8 @@ def test_the_console_filter_keeps_a_sweeps_jobs_quiet():
 def test_the_console_counts_in_the_singular_and_plural():
     from omegaconf import OmegaConf
 
-    from hybrid_sysid.launch.progress import start_line
     from hybrid_sysid.core.words import count
+    from hybrid_sysid.launch.progress import start_line
 
     assert [count(n, "job") for n in (0, 1, 2)] == ["0 jobs", "1 job", "2 jobs"]
     assert count(1, "directory", "directories") == "1 directory" and count(3, "directory", "directories")[2:] == (

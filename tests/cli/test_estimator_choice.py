@@ -8,9 +8,9 @@ import pytest
 import yaml
 from hydra import compose, initialize_config_dir
 
-from hybrid_sysid.launch.choices import SET_BY_ESTIMATOR, check_choices, check_estimator
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.launch.choices import SET_BY_ESTIMATOR, check_choices, check_estimator
 
 
 def overridden_groups(name):

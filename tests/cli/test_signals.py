@@ -7,9 +7,9 @@ import signal
 
 import pytest
 
+from hybrid_sysid.core import stop
 from hybrid_sysid.launch import job
 from hybrid_sysid.launch.process import PROCESS, SIGNALS
-from hybrid_sysid.core import stop
 from hybrid_sysid.runs import locks
 
 

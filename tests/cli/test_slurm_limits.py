@@ -9,8 +9,8 @@ import pytest
 from hydra import compose, initialize_config_dir
 from omegaconf import OmegaConf
 
-from hybrid_sysid.launch import slurm_limits as sl
 from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.launch import slurm_limits as sl
 
 pytest.importorskip("hydra_plugins.hydra_submitit_launcher")
 

@@ -158,8 +158,8 @@ def test_a_swept_choice_without_its_package_is_one_line_before_any_job(
     """mlflow is installed here: the check is told it is not, as a missing package would tell it."""
     import importlib.util
 
-    from hybrid_sysid.launch import process
     from hybrid_sysid.cli.train import main
+    from hybrid_sysid.launch import process
 
     real = importlib.util.find_spec
     monkeypatch.setattr(importlib.util, "find_spec", lambda name, *a: None if name == "mlflow" else real(name, *a))

@@ -118,21 +118,21 @@ def test_job_lines_from_the_progress_file(tmp_path):
     path = tmp_path / ".progress"
     kinds = ["objective=a", "objective=a", "objective=b"]
     path.write_text(json.dumps({"jobs": 3, "swept": ["objective"], "start": 0.0, "at_once": 1, "kinds": kinds}) + "\n")
-    mark_start(path, 0, 10.0, pid=7)
-    header, done = count_done(path, 0, {"t": 70.0, "seconds": 60.0, "cold": False, "pid": 7, "work": 55.0})
+    mark_start(tmp_path, 0, 10.0, pid=7)
+    header, done = count_done(tmp_path, 0, {"t": 70.0, "seconds": 60.0, "cold": False, "pid": 7, "work": 55.0})
     ret = SimpleNamespace(overrides=["objective=a"], return_value={"status": "completed"})
     line = job_line(header, done, 0, ret, 60.0, now=70.0)
     # two jobs left on one worker: one of kind a (60 s) and one of kind b, guessed at a's mean
     left = "about 2:00 left (1 job of a kind not timed yet)"
     assert line == f"[1/3] #0 objective=a: completed in 60 s; sweep 1:10, {left}"
-    mark_start(path, 1, 70.0, pid=7)
-    header, done = count_done(path, 1, {"t": 130.0, "seconds": 60.0, "cold": False, "pid": 7, "work": 55.0})
+    mark_start(tmp_path, 1, 70.0, pid=7)
+    header, done = count_done(tmp_path, 1, {"t": 130.0, "seconds": 60.0, "cold": False, "pid": 7, "work": 55.0})
     assert job_line(header, done, 1, ret, 60.0, now=130.0).endswith("about 1:00 left (1 job of a kind not timed yet)")
 
 
 def test_an_older_progress_file_falls_back_on_elapsed_per_job(tmp_path):
     path = tmp_path / ".progress"
     path.write_text(json.dumps({"jobs": 9, "start": 0.0}) + "\n3\n")  # a bare number per ended job
-    header, done = count_done(path, 4)
+    header, done = count_done(tmp_path, 4)
     ret = SimpleNamespace(overrides=["seed=1"], return_value={"status": "completed"})
     assert done == 2 and job_line(header, done, 4, ret, 20.0, now=60.0).endswith("sweep 1:00, about 3:30 left")

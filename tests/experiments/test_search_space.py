@@ -115,8 +115,8 @@ def test_a_search_with_no_trials_is_refused_before_any_directory(tmp_path):
 
 def test_a_stored_study_of_another_search_is_refused_in_one_line(make_cfg, tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("HYDRA_FULL_ERROR", raising=False)  # with it, a refusal adds its traceback
-    from hybrid_sysid.launch.search import _own
     from hybrid_sysid.experiments.search import study_settings
+    from hybrid_sysid.launch.search import _own
 
     settings = {"params": GOOD, "n_trials": 3, "study_name": "s", "storage": "sqlite:///elsewhere.db"}
     mine = study_settings(make_cfg(), settings, ["objective=hybrid"])

@@ -6,8 +6,8 @@ import pandas as pd
 import pytest
 
 from hybrid_sysid.cli import report
-from hybrid_sysid.launch.job import draws_figures
 from hybrid_sysid.config import ConfigError, validate
+from hybrid_sysid.launch.job import draws_figures
 
 from helpers.evaluation_fakes import make_run
 

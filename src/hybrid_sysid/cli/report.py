@@ -16,11 +16,11 @@ from pathlib import Path
 
 import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
-from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.core.checks import Shown
 from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.core.words import count
 from hybrid_sysid.data.splits import SPLITS
+from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.report.collect import find_runs, load_runs
 from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.paper import write_reproduction

@@ -21,10 +21,10 @@ from hydra.types import RunMode
 from omegaconf import DictConfig
 
 from hybrid_sysid import config
-from hybrid_sysid.launch.job import Preflight, checks_complete, draws_figures, run_job
-from hybrid_sysid.launch.process import console_main
 from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import Shown, bad
+from hybrid_sysid.launch.job import Preflight, checks_complete, draws_figures, run_job
+from hybrid_sysid.launch.process import console_main
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -70,7 +70,7 @@ def outside_other_runs(out_dir: Path, key: str, resume=None) -> None:
         return
     own_job = holder == here.parent and (holder / SWEEP_CONFIG).is_file()
     # a job of its sweep run again as a single run, in its own directory: its record decides (a completed one is
-    # skipped, a changed config refused: cli.job), as for the sweep's command again
+    # skipped, a changed config refused: launch.job), as for the sweep's command again
     if own_job and (here.is_dir() or (resume and Path(str(resume)).resolve() == here)):
         return
     where = "a path outside run and sweep directories, whose files are their record"

@@ -18,11 +18,12 @@ import sys
 import warnings
 from contextlib import contextmanager
 
+from hybrid_sysid.launch.state import PROCESS
+
 LIGHTNING = ("lightning", "lightning.pytorch", "lightning.fabric")
 # what a job in a sweep still shows below WARNING (logger, words in the message): the (long) simulation of a
 # dataset not yet cached, and a re-run sweep's job that is not run again
 SWEEP_INFO = (("hybrid_sysid.data.cache", "simulating"), ("hybrid_sysid", "already completed"))
-_job = {"running": False}
 SRUN_ADVERT = "The `srun` command is available on your system but is not used"  # lightning.fabric's SLURMEnvironment
 
 
@@ -47,7 +48,7 @@ class ConsoleFilter(logging.Filter):
         name = record.name
         if name == "lightning" or name.startswith(("lightning.", "pytorch_lightning", "lightning_fabric")):
             return False  # the run's log file has them
-        if self.sweep and _job["running"] and name.startswith("hybrid_sysid"):
+        if self.sweep and PROCESS.job_running and name.startswith("hybrid_sysid"):
             return any(name == logger and words in str(record.msg) for logger, words in SWEEP_INFO)
         return True
 
@@ -60,11 +61,11 @@ class _NoAdverts(logging.Filter):
 @contextmanager
 def job_running():
     """Within: the job's own work (its INFO messages stay off a sweep's console)."""
-    _job["running"] = True
+    PROCESS.job_running = True
     try:
         yield
     finally:
-        _job["running"] = False
+        PROCESS.job_running = False
 
 
 def quiet_libraries() -> None:

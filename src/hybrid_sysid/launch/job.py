@@ -26,11 +26,14 @@ from typing import Any, Callable
 from hydra.experimental.callback import Callback
 from omegaconf import DictConfig, OmegaConf, open_dict, read_write
 
+from hybrid_sysid.config.paths import check_paths
+from hybrid_sysid.core import ranks, stop
+from hybrid_sysid.core.checks import ConfigError, Shown, bad
+from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.launch.choices import check_choices
 from hybrid_sysid.launch.console import job_running, quiet_libraries
 from hybrid_sysid.launch.orphans import exit_with_parent, job_in_progress
 from hybrid_sysid.launch.process import (
-    PROCESS,
     SIGNALS,
     fail,
     full_error,
@@ -38,12 +41,8 @@ from hybrid_sysid.launch.process import (
     missing_extra_of_sweep,
     stop_sweep,
 )
-from hybrid_sysid.config.paths import check_paths
-from hybrid_sysid.core import ranks, stop
-from hybrid_sysid.core.checks import ConfigError, Shown, bad
-from hybrid_sysid.core.stop import Interrupted
+from hybrid_sysid.launch.state import PROCESS
 from hybrid_sysid.runs import locks
-from hybrid_sysid.runs.layout import STOP_MARKER
 from hybrid_sysid.runs.rundir import CompletedRecordError, RunDir
 from hybrid_sysid.runs.sweepdir import SweepDir
 
@@ -75,7 +74,7 @@ def run_job(
                 signal.signal(s, stop_sweep)
             exit_with_parent()  # a parallel worker ends when the sweep's parent is gone (a no-op in other processes)
         received = stop.received()
-        if received is not None or (sweep_dir is not None and (sweep_dir / STOP_MARKER).exists()):
+        if received is not None or (sweep_dir is not None and SweepDir(sweep_dir).stopped()):
             # a signal came while Hydra composed and launched: do not start
             name = signal.Signals(received).name if received else "the sweep's interruption"
             result = run.record_end(overrides, seed, "interrupted", f"not started: interrupted by {name}")
@@ -114,8 +113,8 @@ def run_job(
             log.error("%s: %s; %s", run_dir, why, "it resumes from its last checkpoint" if requeued else again)
             if not multirun:
                 sys.exit(128 + exc.signum)
-            if not requeued and sweep_dir is not None and sweep_dir.is_dir():  # jobs not yet started skip
-                (sweep_dir / STOP_MARKER).touch()
+            if not requeued and sweep_dir is not None:  # jobs not yet started skip
+                SweepDir(sweep_dir).mark_stopped()
             return result
         except Exception as exc:  # record the failure where the sweep summary will look for it
             error = f"{type(exc).__name__}: {exc}"
@@ -220,7 +219,7 @@ class Preflight(Callback):
         make_dir(sweep_dir, "hydra.sweep.dir")
         locks.hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
         SweepDir(sweep_dir).check_rerun(config)  # a re-run is the same sweep, or nothing is touched
-        (sweep_dir / STOP_MARKER).unlink(missing_ok=True)  # a re-run continues an interrupted sweep
+        SweepDir(sweep_dir).clear_stopped()  # a re-run continues an interrupted sweep
 
 
 @contextmanager

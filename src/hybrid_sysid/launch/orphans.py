@@ -27,24 +27,22 @@ import signal
 import threading
 import time
 
+from hybrid_sysid.launch.state import PROCESS
+
 log = logging.getLogger("hybrid_sysid")
 POLL_SECONDS = 0.5  # how often the parent is checked
 GRACE_SECONDS = 30.0  # at most, from the SIGTERM to the exit: time for the running job to record its interruption
-_lock = threading.Lock()
-_watching = {"pid": None}  # the process whose watcher runs (a forked child inherits this but not the thread)
-_idle = threading.Event()  # set while no job runs in this process
-_idle.set()
 
 
 @contextlib.contextmanager
 def job_in_progress():
     """Within: a job runs in this process, up to and including the writing of its record. A worker whose parent
     is gone exits once no job is in progress (see the module's docstring)."""
-    _idle.clear()
+    PROCESS.idle.clear()
     try:
         yield
     finally:
-        _idle.set()
+        PROCESS.idle.set()
 
 
 def exit_with_parent(poll: float = POLL_SECONDS, grace: float = GRACE_SECONDS) -> bool:
@@ -55,10 +53,10 @@ def exit_with_parent(poll: float = POLL_SECONDS, grace: float = GRACE_SECONDS) -
     parent = multiprocessing.parent_process()
     if parent is None or parent.pid is None:
         return False
-    with _lock:
-        if _watching["pid"] == os.getpid():
+    with PROCESS.lock:
+        if PROCESS.watched == os.getpid():
             return False
-        _watching["pid"] = os.getpid()
+        PROCESS.watched = os.getpid()
     # the parent's pid as the worker was started (not os.getppid() now): a parent that died before this call,
     # the worker already adopted by init or a subreaper, is noticed at the first check
     watcher = threading.Thread(target=_watch, args=(parent.pid, poll, grace), name="exit-with-parent", daemon=True)
@@ -78,5 +76,5 @@ def _watch(parent_pid: int, poll: float, grace: float) -> None:
     # the main thread's handler runs: a stop request within a job (recorded at its next safe point), stop_sweep
     # between jobs (remembered)
     os.kill(os.getpid(), signal.SIGTERM)
-    _idle.wait(grace)
+    PROCESS.idle.wait(grace)
     os._exit(128 + signal.SIGTERM)

@@ -17,15 +17,15 @@ import signal
 import sys
 import traceback
 from contextlib import contextmanager
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Callable
 
-from hybrid_sysid.launch.console import tolerant_streams
-from hybrid_sysid.launch.overrides import quoted_overrides
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.install import install_command
-from hybrid_sysid.runs.layout import STOP_MARKER
+from hybrid_sysid.launch.console import tolerant_streams
+from hybrid_sysid.launch.overrides import quoted_overrides
+from hybrid_sysid.launch.state import PROCESS
+from hybrid_sysid.runs.sweepdir import SweepDir
 
 SIGNALS = (signal.SIGTERM, signal.SIGINT)
 
@@ -97,25 +97,6 @@ def installed(module: str) -> bool:
         return False
 
 
-@dataclass
-class CommandProcess:
-    """What a command's process knows of itself beyond its signals (core.stop) and its writer locks (runs.locks):
-    the sweep it runs, and whether a job has started in it (a failure before one is a refusal, exit status 2)."""
-
-    sweep_dir: Path | None = None
-    job_started: bool = False
-    summarised: bool = False  # the sweep's end (cli.sweep) has run: no summary is written here after it
-    completed: Path | None = None  # a single job's directory, once its completed record is written
-
-    def reset(self) -> None:
-        """As a new process starts (a test that runs several commands in one process)."""
-        self.sweep_dir, self.job_started, self.summarised, self.completed = None, False, False, None
-        stop.reset()
-
-
-PROCESS = CommandProcess()
-
-
 def _request_stop(signum, frame):
     """Within a job: remember the signal; the work raises Interrupted at its next safe point (core.stop)."""
     stop.request(signum)
@@ -171,9 +152,8 @@ def stop_sweep(signum, frame):
     is made first, so a worker is either signalled or finds it."""
     first = stop.received() is None
     stop.note(signum)
-    sweep_dir = PROCESS.sweep_dir
-    if first and sweep_dir is not None and sweep_dir.is_dir():
-        (sweep_dir / STOP_MARKER).touch()
+    if first and PROCESS.sweep_dir is not None:
+        SweepDir(PROCESS.sweep_dir).mark_stopped()
     if first:
         for pid in children():
             if not catches_sigterm(pid):
@@ -186,7 +166,7 @@ def stop_sweep(signum, frame):
 
 def sweep_stopped(sweep_dir: Path) -> bool:
     """Whether a signal has come, to this process or (the sweep's mark) to any of the sweep's processes."""
-    return stop.received() is not None or (sweep_dir / STOP_MARKER).exists()
+    return stop.received() is not None or SweepDir(sweep_dir).stopped()
 
 
 # set beside HYDRA_FULL_ERROR by composition_in_one_line, so its own setting (inherited by a sweep's workers too)

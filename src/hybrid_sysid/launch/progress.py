@@ -1,14 +1,12 @@
 """A sweep's console: a line at its start (how many jobs, how many at a time), then one line per finished job: its
 number of the total, its swept values, its headline error (test split, the lowest noise level and K, p1 and p2),
 its time, the sweep's elapsed time and an estimate of the time left (hybrid_sysid.launch.time_left). The jobs write
-their starts and ends to the sweep directory's ``.progress`` (runs.layout.PROGRESS), one lock at a time, since
-parallel workers print their own lines: a JSON header, then one JSON line per event."""
+their starts and ends to the sweep directory's ``.progress`` (runs.layout.PROGRESS, written by runs.sweepdir), one
+lock at a time, since parallel workers print their own lines: a JSON header, then one JSON line per event."""
 
 from __future__ import annotations
 
-import fcntl
 import itertools
-import json
 import math
 import os
 import time
@@ -17,8 +15,9 @@ from typing import Any
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.launch.time_left import estimate
 from hybrid_sysid.core.words import count
+from hybrid_sysid.launch.time_left import estimate
+from hybrid_sysid.runs.sweepdir import SweepDir
 
 MAX_KINDS = 100_000  # jobs: a longer sweep's header names no kinds (its estimate then treats jobs alike)
 
@@ -107,39 +106,17 @@ def header_of(config: DictConfig, start: float) -> dict:
     return {"jobs": jobs, "swept": swept, "start": start, "at_once": at_once(config, jobs), "kinds": job_kinds(config)}
 
 
-def _append(path: Path, entry) -> list[str]:
-    """Append one line and return all the file's lines (one lock: parallel workers write in turn). A missing file
-    (a sweep started elsewhere) stays missing: its first line would not be a header."""
-    with open(path, "r+", encoding="utf-8") as f:
-        fcntl.flock(f, fcntl.LOCK_EX)
-        try:
-            f.seek(0, os.SEEK_END)
-            f.write(json.dumps(entry) + "\n")
-            f.flush()
-            f.seek(0)
-            return f.read().splitlines()
-        finally:
-            fcntl.flock(f, fcntl.LOCK_UN)
-
-
-def mark_start(path: Path, num, now: float, pid: int | None = None) -> None:
+def mark_start(sweep_dir: Path, num, now: float, pid: int | None = None) -> None:
     """Job ``num`` started at ``now`` in process ``pid``: the estimate counts what it still needs, not a job's whole
     time."""
-    _append(path, {"start": num, "t": now, "pid": pid})
+    SweepDir(sweep_dir).add_progress({"start": num, "t": now, "pid": pid})
 
 
-def count_done(path: Path, num, entry: dict | None = None) -> tuple[dict, int]:
+def count_done(sweep_dir: Path, num, entry: dict | None = None) -> tuple[dict, int]:
     """Append the end of job ``num`` (``entry``: its time, whether its worker was cold, its work; see time_left)
-    to the progress file and return its header, with the file's events under "events", and how many jobs have
-    ended."""
-    lines = _append(path, {**(entry or {}), "end": num})
-    header = json.loads(lines[0])
-    if not isinstance(header, dict):
-        raise ValueError(f"{path} has no header")
-    events = []
-    for line in lines[1:]:
-        event = json.loads(line)
-        events.append(event if isinstance(event, dict) else {"end": event})  # a bare number: an older file
+    to the sweep's progress file and return its header, with the file's events under "events", and how many jobs
+    have ended."""
+    header, events = SweepDir(sweep_dir).progress_with({**(entry or {}), "end": num})
     header["events"] = events
     return header, len({e["end"] for e in events if "end" in e})
 

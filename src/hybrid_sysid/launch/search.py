@@ -29,11 +29,11 @@ from typing import Any
 
 from omegaconf import DictConfig
 
-from hybrid_sysid.launch.job import task_config
-from hybrid_sysid.launch.process import fail, sweep_stopped
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.search import StudySettings, sampler_for, study_settings
+from hybrid_sysid.launch.job import task_config
+from hybrid_sysid.launch.process import fail, sweep_stopped
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")

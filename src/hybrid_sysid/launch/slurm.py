@@ -31,12 +31,11 @@ from hydra_plugins.hydra_submitit_launcher.config import BaseQueueConf
 from hydra_plugins.hydra_submitit_launcher.submitit_launcher import SlurmLauncher as SubmititSlurmLauncher
 from omegaconf import OmegaConf, open_dict
 
+from hybrid_sysid.core import stop
+from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.launch import slurm_limits
 from hybrid_sysid.launch.process import fail
 from hybrid_sysid.launch.progress import count_done, job_line
-from hybrid_sysid.core import stop
-from hybrid_sysid.core.checks import ConfigError, Shown
-from hybrid_sysid.runs.layout import PROGRESS
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -183,7 +182,7 @@ class SlurmLauncher(SubmititSlurmLauncher):
         """The sweep's line for a job that ended (hybrid_sysid.launch.progress); its seconds count from the submission,
         time in the queue included. The job's own line went to its SLURM log."""
         try:
-            header, done = count_done(Path(str(self.config.hydra.sweep.dir)) / PROGRESS, num)
+            header, done = count_done(Path(str(self.config.hydra.sweep.dir)), num)
             print(job_line(header, done, num, ret, seconds), flush=True)
         except Exception as exc:  # noqa: BLE001 - no .progress (a search): the job is done all the same
             log.info("no progress line: %s: %s", type(exc).__name__, exc)

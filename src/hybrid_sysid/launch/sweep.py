@@ -16,7 +16,6 @@ writes reproduction.md, the paper's figures beside ours; ``compare``: the row ke
 from __future__ import annotations
 
 import importlib
-import json
 import logging
 import os
 import threading
@@ -28,11 +27,11 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
-from hybrid_sysid.launch.process import PROCESS
-from hybrid_sysid.launch.progress import count_done, header_of, job_line, mark_start, record_of, start_line
-from hybrid_sysid.launch.time_left import work_seconds
 from hybrid_sysid.core.words import count
-from hybrid_sysid.runs.layout import PROGRESS
+from hybrid_sysid.launch.progress import count_done, header_of, job_line, mark_start, record_of, start_line
+from hybrid_sysid.launch.state import PROCESS
+from hybrid_sysid.launch.time_left import work_seconds
+from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")
 # what the sweep's end needs (scipy.stats, matplotlib, pandas: seconds of imports). The parent loads them in a
@@ -45,7 +44,6 @@ REPORT_MODULES = (
     "hybrid_sysid.report.terminal",
     "hybrid_sysid.training.tracking.mlflow_store",
 )
-_process = {"jobs": 0}  # the jobs this process has started (a parallel worker runs several)
 PRELOAD_AFTER = 5.0  # seconds: Hydra's launcher has imported its own modules and started the jobs by then
 
 
@@ -73,8 +71,7 @@ class SweepSummary(Callback):
         sweep_dir = Path(config.hydra.sweep.dir)
         header = header_of(config, time.time())
         try:
-            sweep_dir.mkdir(parents=True, exist_ok=True)
-            (sweep_dir / PROGRESS).write_text(json.dumps(header) + "\n", encoding="utf-8")
+            SweepDir(sweep_dir).start_progress(header)
         except OSError:  # no progress lines then; the sweep itself reports the directory's problem
             pass
         print(start_line(config, header["jobs"], sweep_dir), flush=True)
@@ -85,11 +82,11 @@ class SweepSummary(Callback):
 
     def on_job_start(self, config: DictConfig, **kwargs: Any) -> None:
         self._job_start = time.time()
-        self._cold = not _process["jobs"]  # this process's first job pays its imports (progress: time_left)
-        _process["jobs"] += 1
+        self._cold = not PROCESS.jobs  # this process's first job pays its imports (progress: time_left)
+        PROCESS.jobs += 1
         if config.hydra.mode == RunMode.MULTIRUN:
             try:
-                mark_start(Path(config.hydra.sweep.dir) / PROGRESS, config.hydra.job.num, self._job_start, os.getpid())
+                mark_start(Path(config.hydra.sweep.dir), config.hydra.job.num, self._job_start, os.getpid())
             except Exception as exc:  # noqa: BLE001 - the estimate then counts the job as not started
                 log.info("no progress start: %s: %s", type(exc).__name__, exc)
 
@@ -102,8 +99,8 @@ class SweepSummary(Callback):
             record = record_of(job_return)
             ok = isinstance(record, dict) and record.get("status", "completed") == "completed"
             entry = {"t": now, "seconds": seconds, "cold": getattr(self, "_cold", True), "pid": os.getpid()}
-            path = Path(config.hydra.sweep.dir) / PROGRESS
-            header, done = count_done(path, config.hydra.job.num, {**entry, "work": work_seconds(record), "ok": ok})
+            entry.update(work=work_seconds(record), ok=ok)
+            header, done = count_done(Path(config.hydra.sweep.dir), config.hydra.job.num, entry)
             line = job_line(header, done, config.hydra.job.num, job_return, seconds, now)
         except Exception as exc:  # noqa: BLE001 - e.g. no .progress (a sweep started elsewhere): the job is done
             log.info("no progress line: %s: %s", type(exc).__name__, exc)

@@ -9,7 +9,7 @@ def hydra_subdir(output_dir: str | None) -> str | None:
     """``${hydra_subdir:${hydra.runtime.output_dir}}``, Hydra's output_subdir (conf/config.yaml, conf/eval.yaml):
     .hydra, where Hydra saves a job's config as the job starts, but None, so Hydra saves nothing, in a directory
     holding a completed run. Its saved config belongs to its record and is never replaced: a re-run of it is
-    skipped or refused (cli.job), after Hydra would already have rewritten it. Registered here, where records are
+    skipped or refused (launch.job), after Hydra would already have rewritten it. Registered here, where records are
     read: every command imports this layer before Hydra starts a job."""
     from hybrid_sysid.runs.rundir import RunDir
 

@@ -1,8 +1,12 @@
-"""A sweep directory: Hydra's record of the sweep (multirun.yaml) read as a config or as plain data, and whether a
-command may run into it again (``check_rerun``)."""
+"""A sweep directory: Hydra's record of the sweep (multirun.yaml) read as a config or as plain data, whether a
+command may run into it again (``check_rerun``), and the state its processes share while it runs: the stop mark
+(runs.layout.STOP_MARKER) and the progress file (runs.layout.PROGRESS)."""
 
 from __future__ import annotations
 
+import fcntl
+import json
+import os
 from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
@@ -46,6 +50,58 @@ class SweepDir:
         """Whether a job of an earlier sweep wrote here: a record or a saved config at any depth (a run of
         experiment=tuned sits two levels below its job)."""
         return any(self.path.rglob(layout.RECORD)) or any(self.path.rglob(".hydra"))
+
+    # the sweep's state beside its runs, shared by its processes: the stop mark and the progress file
+    @property
+    def stop_marker(self) -> Path:
+        return self.path / layout.STOP_MARKER
+
+    def stopped(self) -> bool:
+        """Whether one of the sweep's processes took a signal: its jobs not yet started skip."""
+        return self.stop_marker.exists()
+
+    def mark_stopped(self) -> None:
+        """Mark the sweep interrupted, so jobs not yet started skip; a directory not yet made gets no mark."""
+        if self.path.is_dir():
+            self.stop_marker.touch()
+
+    def clear_stopped(self) -> None:
+        """A re-run continues an interrupted sweep."""
+        self.stop_marker.unlink(missing_ok=True)
+
+    @property
+    def progress_file(self) -> Path:
+        return self.path / layout.PROGRESS
+
+    def start_progress(self, header: dict) -> None:
+        """The progress file anew with its header line (launch.progress); OSError if it cannot be written."""
+        self.path.mkdir(parents=True, exist_ok=True)
+        self.progress_file.write_text(json.dumps(header) + "\n", encoding="utf-8")
+
+    def add_progress(self, entry: dict) -> list[str]:
+        """Append one JSON line to the progress file and return all its lines, under one lock (parallel workers
+        write in turn). A missing file (a sweep started elsewhere) stays missing: its first line would not be a
+        header, so FileNotFoundError."""
+        with open(self.progress_file, "r+", encoding="utf-8") as f:
+            fcntl.flock(f, fcntl.LOCK_EX)
+            try:
+                f.seek(0, os.SEEK_END)
+                f.write(json.dumps(entry) + "\n")
+                f.flush()
+                f.seek(0)
+                return f.read().splitlines()
+            finally:
+                fcntl.flock(f, fcntl.LOCK_UN)
+
+    def progress_with(self, entry: dict) -> tuple[dict, list[dict]]:
+        """``add_progress``, then the file read back: its header and its events (a bare number, as an older file
+        has it, is the end of that job). ValueError when the first line is not a header."""
+        lines = self.add_progress(entry)
+        header = json.loads(lines[0])
+        if not isinstance(header, dict):
+            raise ValueError(f"{self.progress_file} has no header")
+        events = [e if isinstance(e, dict) else {"end": e} for e in map(json.loads, lines[1:])]
+        return header, events
 
     def check_rerun(self, config: DictConfig) -> None:
         """A sweep run again into this directory must be the sweep that made it: the same command-line overrides,
