@@ -1,4 +1,4 @@
-"""What memory a process may still use (config.memory.memory_limits): free memory, its address-space limit less
+"""What memory a process may still use (core.memory.memory_limits): free memory, its address-space limit less
 what it has mapped, and its memory cgroup's limit less its usage (v2 and v1, at its own cgroup and each above it).
 The /proc and /sys/fs/cgroup read are fake trees here, the limits set in child processes."""
 
@@ -6,7 +6,7 @@ import json
 import subprocess
 import sys
 
-from hybrid_sysid.config.memory import (
+from hybrid_sysid.core.memory import (
     ADDRESS_SPACE,
     CGROUP_V1,
     CGROUP_V2,
@@ -83,7 +83,7 @@ def test_unreadable_files_count_as_no_limit(tmp_path):
 CHILD = """
 import json, resource, sys
 from pathlib import Path
-from hybrid_sysid.config.memory import ADDRESS_SPACE, FREE, available_memory, memory_limits
+from hybrid_sysid.core.memory import ADDRESS_SPACE, FREE, available_memory, memory_limits
 def vmsize():
     return next(int(x.split()[1]) * 1024 for x in open("/proc/self/status") if x.startswith("VmSize:"))
 limit = vmsize() + 2**30

@@ -1,9 +1,9 @@
 """The memory that estimating K windows of many recordings takes, against what the process may still use (the
-smallest of its limits: config.memory.memory_limits, the one home of that question)."""
+smallest of its limits: core.memory.memory_limits, the one home of that question)."""
 
 from __future__ import annotations
 
-from hybrid_sysid.config.memory import tightest_memory
+from hybrid_sysid.core.memory import tightest_memory
 from hybrid_sysid.inference.inputs import InputError
 
 CHUNK = 4096  # windows per forward pass, so long recordings need bounded memory
