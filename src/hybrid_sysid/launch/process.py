@@ -65,7 +65,7 @@ def missing_extra_of_sweep(overrides, task) -> str | None:
     is one line before any job starts, not every job failing."""
     from hydra.core.override_parser.overrides_parser import OverridesParser
 
-    from hybrid_sysid.config.validation import validate_callbacks, validate_loggers
+    from hybrid_sysid.config.loggers import validate_callbacks, validate_loggers
 
     args, swept = [], set()
     for override in OverridesParser.create().parse_overrides(list(overrides)):
