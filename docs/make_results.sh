@@ -29,8 +29,7 @@ hybrid-sysid experiment=noise_robust data.measurement=paper noise.train_std=0.01
 hybrid-sysid experiment=tuned hydra.sweep.dir=$out/tuned   # pip install -e ".[search]"
 hybrid-sysid experiment=anchored hydra.sweep.dir=$out/anchored
 hybrid-sysid experiment=anchored_clean hydra.sweep.dir=$out/anchored_clean
-hybrid-sysid experiment=compare objective=labelled,hybrid,combined,hybrid_bandpass,hybrid_eiv,label_free,cross_segment \
-  hydra.sweep.dir=$out/compare
+hybrid-sysid experiment=compare objective=labelled,hybrid,label_free,cross_segment hydra.sweep.dir=$out/compare
 hybrid-sysid-report $out/robustness $out/best $out/ablations_measurement $out/ablations_trainnoise $out/baselines \
   $out/paper $out/transfer $out/field $out/robustness_spread $out/noise_robust $out/baselines_paper $out/noise_robust_paper \
   $out/tuned $out/anchored $out/anchored_clean $out/compare exclude='*/search/*' results=docs/results notes=docs/results_notes.md reproduction=true \
