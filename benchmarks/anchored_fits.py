@@ -36,10 +36,10 @@ def main():
         signals = next(batches)["signals"]
         x = signals.double().numpy()
 
-        def solved_once():
+        def solved_once(signals=signals):
             return model.fits(signals)
 
-        def solved_twice():
+        def solved_twice(signals=signals, x=x):
             anchor = model.anchor(signals)
             return anchor, model.map.fit_windows(x[:, 0], x[:, 1], model.dt, model.measurement)
 
@@ -51,7 +51,8 @@ def main():
             out[fn] = fn()
             times.append(time.perf_counter() - t0)
         (fit, map_fit), (anchor, separate) = out[solved_once], out[solved_twice]
-        same &= all(np.array_equal(a, b, equal_nan=True) for a, b in zip((*fit[:2], *map_fit), (*anchor[:2], *separate)))
+        pairs = zip((*fit[:2], *map_fit), (*anchor[:2], *separate))
+        same &= all(np.array_equal(a, b, equal_nan=True) for a, b in pairs)
     print(f"{args.batches} training batches of {signals.shape[0]} windows, {signals.shape[-1]} samples")
     print(f"  solved once  median {np.median(once):.3f} s a batch")
     print(f"  solved twice median {np.median(twice):.3f} s a batch")

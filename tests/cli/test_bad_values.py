@@ -14,9 +14,9 @@ CASES = [
     (["trainer.max_steps=abc"], {}, "trainer.max_steps"),
     (["paths.root=''"], {}, "paths.root"),
     ([], {"HYBRID_SYSID_CACHE": ""}, "paths.cache_dir"),
-    (["-m", "--cfg", "job"], {}, "the command line"),
-    (["baseline=null"], {}, "baseline"),
-    (["baseline={a:1}"], {}, "baseline"),  # a dict merged into a null section: OmegaConf's AttributeError  # null is no option to Hydra: it refused it unnamed, with a traceback  # Hydra's own refusal of the pair, once a traceback
+    (["-m", "--cfg", "job"], {}, "the command line"),  # Hydra's own refusal of the pair, once a traceback
+    (["baseline=null"], {}, "baseline"),  # null is no option to Hydra: it refused it unnamed, with a traceback
+    (["baseline={a:1}"], {}, "baseline"),  # a dict merged into a null section: OmegaConf's AttributeError
 ]
 
 

@@ -7,8 +7,7 @@ from hydra import compose, initialize_config_dir
 
 from hybrid_sysid.config import CONF_DIR
 from hybrid_sysid.data import recordings_files
-from hybrid_sysid.data.recordings_files import split_recordings
-from hybrid_sysid.data.recordings_files import scan
+from hybrid_sysid.data.recordings_files import scan, split_recordings
 from hybrid_sysid.data.recordings_labels import read_labels
 from hybrid_sysid.training.build import build_datamodule
 

@@ -221,7 +221,9 @@ def legend(table: pd.DataFrame, compare: str | None = None, latex: bool = False)
             f"{bold}: lowest mean in its column among rows that differ only in "
             f"{esc(level) if latex else f'`{level}`'}; {dagger}: {test}; unmarked: not worse by that "
             "rule, or fewer than 2 seeds without a paired test. "
-            f"[a, b]: {CONFIDENCE:.0%} Student t interval of the mean over seeds, cut at 0.".replace("%", r"\%" if latex else "%")
+            f"[a, b]: {CONFIDENCE:.0%} Student t interval of the mean over seeds, cut at 0.".replace(
+                "%", r"\%" if latex else "%"
+            )
         )
     few = [(label, int(n)) for label, n in table[("n_seeds", "", "")].items() if n < MIN_SEEDS]
     if few:
