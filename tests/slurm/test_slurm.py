@@ -175,7 +175,7 @@ def test_a_job_killed_without_a_result_is_recorded_failed_and_the_sweep_ends(tmp
     out, _ = proc.communicate(timeout=240)
     assert proc.returncode == 1, out[-2000:]
     assert record(sweep / "0")["status"] == "failed" and "without a result" in record(sweep / "0")["error"]
-    assert "1 of 1 jobs failed" in out
+    assert "1 of 1 job failed" in out
 
 
 def test_time_limit_requeues_and_resumes(tmp_path, tiny_cache):
