@@ -18,6 +18,7 @@ from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
 from hybrid_sysid.runs.layout import CONFIG
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.callbacks import AtomicCheckpointIO, StopAtSafePoints, ValidateAtEnd
+from hybrid_sysid.training.data_arguments import window_arguments
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -42,18 +43,9 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
     return QuarterCarDataModule(
         DatasetSpec.from_config(cfg),
         cache_dir=d.cache_dir,
-        window=d.window,
-        batch_size=cfg.model.batch_size,
         train_fraction=d.train_fraction,
         val_fraction=d.val_fraction,
-        train_std=cfg.noise.train_std,
-        seed=cfg.seed,
-        integration=d.integration,
-        fir=None if objective is None else objective.fir,
-        train_std_max=cfg.noise.get("train_std_max"),
-        outside_fir=None if objective is None else objective.outside_fir,
-        # an objective of a plugin need not declare a target: its outside fit, if any, is least squares
-        outside_target=getattr(objective, "outside_target", None),
+        **window_arguments(cfg, objective),
     )
 
 

@@ -12,6 +12,7 @@ from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
 from hybrid_sysid.data.recordings import RecordingsDataModule
 from hybrid_sysid.data.recordings_files import file_print, index, split_recordings
 from hybrid_sysid.data.recordings_labels import read_labels
+from hybrid_sysid.training.data_arguments import window_arguments
 
 
 def whole_recording_fit(seat: np.ndarray, body: np.ndarray, dt: float, measurement: str) -> np.ndarray:
@@ -35,13 +36,5 @@ def recordings_datamodule(cfg: DictConfig, objective=None) -> RecordingsDataModu
         whole_recording_fit,
         labels,
         labels_file,
-        window=d.window,
-        batch_size=cfg.model.batch_size,
-        train_std=cfg.noise.train_std,
-        seed=cfg.seed,
-        integration=d.integration,
-        fir=None if objective is None else objective.fir,
-        train_std_max=cfg.noise.get("train_std_max"),
-        outside_fir=None if objective is None else objective.outside_fir,
-        outside_target=getattr(objective, "outside_target", None),
+        **window_arguments(cfg, objective),
     )
