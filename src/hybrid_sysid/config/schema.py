@@ -2,7 +2,8 @@
 
 One dataclass per section of the config. The data section has no list of its own: its keys are the fields of
 ``DatasetSpec`` (what changes the simulated data) and ``WindowSettings`` (how the data module cuts it), plus
-where the cache lies, so a new data value is declared once, where it is used.
+where the cache lies, so a new data value is declared once, where it is used. Likewise model.optim is the fields of
+``OptimSettings`` (``section_of``: the class is the schema).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ from typing import Any, Dict, List, Optional
 from omegaconf import MISSING
 
 from hybrid_sysid.data.spec import OUTSIDE_DATA, DatasetSpec, WindowSettings
+from hybrid_sysid.model.optim import OptimSettings
 from hybrid_sysid.physics import QuarterCar
 
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # inside the package, so an installed wheel has it
@@ -82,13 +84,16 @@ class SensorConfig:
     lowpass_range_hz: Optional[List[float]] = None  # [lo, hi] Hz: each sensor of each recording draws its cut-off
 
 
-@dataclass
-class OptimConfig:
-    name: str = "adamw"
-    lr: float = 3e-3
-    weight_decay: float = 0.0
-    schedule: str = "onecycle"
-    warmup_fraction: float = 0.3
+def section_of(owner: type, name: str) -> type:
+    """A config section whose keys, types and defaults are the fields of ``owner``, the class that checks and uses
+    them (the class is the schema), as a dataclass Hydra may merge overrides into (the owner may be frozen)."""
+    hints = typing.get_type_hints(owner)
+    section = make_dataclass(name, [(f.name, hints[f.name], field(default=f.default)) for f in fields(owner)])
+    section.__doc__ = f"The fields of {owner.__module__}.{owner.__qualname__}, as a config section."
+    return section
+
+
+OptimConfig = section_of(OptimSettings, "OptimConfig")  # model.optim
 
 
 @dataclass
