@@ -38,7 +38,7 @@ def starts_of(dm, batch):
 
 def relative_states_by_loop(seat, body, dt):
     """Symplectic Euler from rest, step by step (v_k from a_0..a_{k-1}, x_k = x_{k-1} + dt v_k), then the
-    consistent pairing with the body's velocity one step on: rel_vel_k - dt y''_k (docs/design.md)."""
+    consistent pairing with the body's velocity one step on: rel_vel_k - dt y''_k (docs/discretisation.md)."""
     vel, disp = np.zeros_like(seat), np.zeros_like(seat)
     v, x = np.zeros(len(seat)), np.zeros(len(seat))
     for k in range(seat.shape[1]):

@@ -64,7 +64,7 @@ def test_a_good_space_is_the_search_space(make_cfg):
     ],
 )
 def test_a_space_on_the_command_line_is_a_dimension_of_the_search(make_cfg, argument, expected):
-    """The documented command-line space (docs/usage.md): Hydra cannot print a sweep back as text, which once
+    """The documented command-line space (docs/usage/search.md): Hydra cannot print a sweep back as text, which once
     broke the preflight (a warning) and then the search (a traceback)."""
     from hybrid_sysid.experiments.search import study_settings
 

@@ -84,7 +84,7 @@ def test_the_defaults_of_simulate_and_relative_states_fit_together():
 
 @pytest.mark.parametrize("road_class", list("ABCE"))
 def test_paper_measurement_biases_the_fit(road_class):
-    # docs/design.md, "The hybrid objective and the discretisation": re-integrating eq.-12 recordings does not
+    # docs/discretisation.md, "The hybrid objective and the discretisation": re-integrating eq.-12 recordings does not
     # give the simulator's states back
     assert worst_fit_error(road_class, "paper", 0.001) > 0.5
     # the consistent recording with eq. 22's same-step pairing leaves a bias of about dt p1 y''

@@ -13,7 +13,7 @@ One job per seed (the sweep runs them side by side) trains, in order, in its own
   ``<scenario>/scratch[_<objective>]``: the label-free ``transfer.scratch_objective`` from random weights on the
   target;
   ``<scenario>/anchored_<objective>``: for each label-free objective of ``transfer.anchored_objectives``,
-  model=anchored trained with it from scratch on the target (docs/design.md, "The anchored estimator");
+  model=anchored trained with it from scratch on the target (docs/anchored.md, "The anchored estimator");
   ``<scenario>/oracle``: the labelled objective with the target's labels;
   ``<scenario>/baseline_<name>``: when ``transfer.baseline`` names a baseline preset (conf/baseline), that
   baseline on the target, without a network (an ordinary ``baseline=`` run).

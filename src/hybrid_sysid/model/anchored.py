@@ -1,5 +1,5 @@
 """An estimator anchored in physics: the window's own fit of the seat, trusted as far as the fit itself says it may
-be, and a network for the rest (docs/design.md, "The anchored estimator").
+be, and a network for the rest (docs/anchored.md, "The anchored estimator").
 
 Per window and parameter, p = w p_fit + (1 - w) p_net with w = tau^2 / (tau^2 + se^2): se is the fit's own
 relative standard error, and the network gives both p_net and tau from the window and the fit's statistics. The
@@ -62,7 +62,7 @@ class AnchoredCNN(FastCNN):
         prior decides the MAP fit, and the network only corrects it; where they do not, the gate keeps the
         likelihood fit. A network that learns p_net from scratch has to rediscover the prior from its
         objective; a label-free objective's targets carry noise as large as the window's own error at noise
-        0.03, and the network then missed the MAP fit it could have started from (docs/design.md).
+        0.03, and the network then missed the MAP fit it could have started from (docs/anchored.md).
     trunk: False: the head reads the fits' statistics alone, without the convolutional trunk's features of the
         window (with a prior, those statistics hold what the trunk found, at a fraction of a step's cost).
 

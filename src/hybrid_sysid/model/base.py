@@ -3,7 +3,7 @@
 Each is a Protocol: a class meets it by having the members, without inheriting anything, so a class of one's own
 (a researcher's network, say) needs no import of this package's classes. ``lacks(cls, protocol)`` names the
 members a class does not have; the config layer refuses a ``_target_`` whose class lacks any (config/targets.py).
-docs/design.md ("Adding a network or an objective") shows a class of each kind; docs/extending.md, one in a
+docs/extend/network.md and docs/extend/objective.md show a class of each kind; docs/extending.md, one in a
 package of its own (a plugin, declared by an entry point: config/plugins.py).
 """
 

@@ -39,7 +39,7 @@ class PaperCNN(nn.Module):
     into a single linear map and the extra layers would be pointless; tanh is the paper's only named activation.
     ``activation="none"`` gives the literal reading. The abs output is multiplied by a fixed label scale
     ``p_scale`` (a buffer; the midpoint of the prior), so the raw outputs are of order 1: an abs(linear) head from
-    random weights otherwise needs very many steps just to reach p2 ~ 1000 (docs/design.md, "Choices the paper
+    random weights otherwise needs very many steps just to reach p2 ~ 1000 (docs/physics.md, "Choices the paper
     leaves open").
     """
 

@@ -19,7 +19,7 @@ from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, STEPPED
 
 # What a recording holds as the two sensors' accelerations (core.options.MEASUREMENTS): "paper" is eq. 12 from the
 # states at step k, "consistent" what the integrator applied. Re-integrating "paper" recordings does not give the
-# simulated states back, which biases the hybrid objective (docs/design.md, "The hybrid objective and the
+# simulated states back, which biases the hybrid objective (docs/discretisation.md, "The hybrid objective and the
 # discretisation"). "continuous" samples the exact solution of eq. 10 every dt, as an accelerometer would
 # (physics.exact): no discrete scheme reproduces it, so it is the honest target for a network trained on simulated
 # data.
@@ -203,7 +203,7 @@ def simulate(
 
     measurement "paper" records eq. 12 from the states at step k. "consistent" records the accelerations
     the integrator applied, (w_{k+1} - w_k) / dt and (v_{k+1} - v_k) / dt, so that re-integrating them
-    reproduces the simulated velocities and states exactly (docs/design.md, "The hybrid objective and the
+    reproduces the simulated velocities and states exactly (docs/discretisation.md, "The hybrid objective and the
     discretisation").
 
     return_states=True adds a third item: a dict of the states at steps 0..n_steps-1, keys "u", "v", "w"

@@ -42,7 +42,7 @@ def class_psd(road_class: str) -> float:
 
 def wave_amplitudes(road_class: str, n_waves: int = 300) -> np.ndarray:
     """A_i for one class: eq. 3, sqrt(Phi dw / pi). (The form common elsewhere, sqrt(2 Phi dw), gives a road RMS
-    sqrt(2 pi), about 2.5 times, larger: docs/design.md, "Road".)"""
+    sqrt(2 pi), about 2.5 times, larger: docs/physics.md, "Road".)"""
     w = wave_numbers(n_waves)
     dw = w[1] - w[0]
     phi = class_psd(road_class) * (w / OMEGA_0) ** -2

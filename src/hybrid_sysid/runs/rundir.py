@@ -1,5 +1,5 @@
 """A run directory, read and written here alone (its file names: runs/layout.py), and its self-describing record,
-metrics.json (its fields: docs/design.md, "Run records"), never replaced once completed.
+metrics.json (its fields: docs/run_records.md, "Run records"), never replaced once completed.
 
 Every command reads a run the same way: its record (``record``), its saved config (``saved_config`` as a config,
 ``saved_values`` as plain data for a report), its group choices and overrides, and the weights it is used with

@@ -1,6 +1,6 @@
 """Experiment trackers (conf/logger): Lightning loggers for a run, and what the run logs to them beyond Lightning's
 own training loss and validation metrics: the resolved config as hyperparameters, the learning-curve rows and the
-final results (docs/usage.md#experiment-trackers). How runs are named: naming.py; MLflow's tags, files and sweep
+final results (docs/usage/trackers.md). How runs are named: naming.py; MLflow's tags, files and sweep
 summary: mlflow_store.py; TensorBoard's HPARAMS table: hparams.py. TensorBoard names a run by its directory: a
 sweep's jobs write to ``<sweep dir>/tensorboard/<run name>/``, a single run to ``<run dir>/tensorboard/``.
 """
