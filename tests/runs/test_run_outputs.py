@@ -1,4 +1,4 @@
-"""What a run writes besides its record (docs/reliability/run.md, "Failures and damaged files"): the tables and
+"""What a run writes besides its record (docs/reliability/resume.md, "Failures and damaged files"): the tables and
 figures replaced whole or not at all, the record's train_seconds across a resume, the warning that names an
 unreadable metrics.json. In this process: nothing here is about a process."""
 

@@ -9,7 +9,7 @@ batch (training.callbacks.StopAtSafePoints), after every evaluation batch, while
 lock, before a run scores its model and before it writes its record; a sweep checks between its jobs.
 
 A wait in C code that never runs Python's handlers (torch's rendezvous, waiting for nodes nobody started) would
-never reach a safe point: ``watched`` ends such a wait from a thread (docs/reliability/run.md).
+never reach a safe point: ``watched`` ends such a wait from a thread (docs/reliability/resume.md).
 """
 
 from __future__ import annotations
