@@ -67,7 +67,22 @@ class InputError(ConfigError):
 
 
 def bad(key: str, value, allowed: str):
-    """Raise ConfigError(key, value, allowed)."""
+    """Refuse a value: the one-line error every check raises.
+
+    Parameters
+    ----------
+    key : str
+        The config key (or argument) named, e.g. ``data.dt``.
+    value : object
+        The value refused, shown as given.
+    allowed : str
+        What is allowed, e.g. "a float in (0, 0.036]".
+
+    Raises
+    ------
+    ConfigError
+        Always; its message reads ``KEY = VALUE is not allowed: ALLOWED``.
+    """
     raise ConfigError(key, value, allowed)
 
 

@@ -26,8 +26,18 @@ def memory_limits(proc: Path = PROC, cgroup: Path = CGROUP) -> dict[str, int]:
     """Bytes this process may still allocate under each limit it lives under that can be read, by name: the
     kernel's MemAvailable; the soft RLIMIT_AS less the address space already mapped (VmSize), which is what
     ``ulimit -v`` bounds, free memory or not; and the memory cgroup's limit less its usage, v2 and v1, at the
-    process's own cgroup and each one above it (a container's or a cluster job's limit may sit on any). ``proc``
-    and ``cgroup`` are the roots read (the real ones by default)."""
+    process's own cgroup and each one above it (a container's or a cluster job's limit may sit on any).
+
+    Parameters
+    ----------
+    proc, cgroup : pathlib.Path
+        The roots read (the real ``/proc`` and cgroup file system by default).
+
+    Returns
+    -------
+    dict of str to int
+        Bytes by limit's name; a limit that cannot be read is left out (counts as none).
+    """
     found = {}
     meminfo = _read(proc / "meminfo")
     for line in (meminfo or "").splitlines():

@@ -79,17 +79,35 @@ class Estimator:
     def predict(
         self, seat_acc, body_acc, dt: float, windows: int = 8, resample: bool = False, names: Sequence | None = None
     ) -> pd.DataFrame:
-        """Estimates per recording: p1, p2 (1/s, 1/s^2) averaged over ``windows`` windows, their std over the
-        windows, and m3 (kg) from each, m3 = C3 / p1 and K3 / p2 for the run's car.
+        """Estimates per recording: p1, p2 averaged over ``windows`` windows, their std, and m3 from each.
 
-        seat_acc, body_acc: float arrays in m/s^2, 1-D (one recording), 2-D (recordings, steps) or a list of
-        1-D arrays (recordings of different lengths). dt: their sampling interval in s; it must equal the run's
-        data.dt unless ``resample`` (then scipy's polyphase filter brings them to the run's rate). The K window
-        starts are evenly spaced over each recording, first at 0, last at the end. ``names`` label the
-        recordings (default 0, 1, ...). Bad input raises InputError (a ValueError).
+        Parameters
+        ----------
+        seat_acc, body_acc : array_like or list of array_like
+            Seat z'' and body y'' in m/s^2: 1-D (one recording), 2-D (recordings, steps), or a list of 1-D
+            arrays (recordings of different lengths).
+        dt : float
+            Their sampling interval in s. It must equal the run's ``data.dt`` unless ``resample``.
+        windows : int
+            K >= 1, the windows averaged per recording; their starts are evenly spaced, first at 0, last at the end.
+        resample : bool
+            True: scipy's polyphase filter brings the recordings to the run's rate.
+        names : sequence, optional
+            One label per recording (default 0, 1, ...).
 
-        The column ``flag`` says why not to trust a row (range, channels, run_error; empty when none); each kind
-        also raises one EstimateWarning and is listed in ``table.attrs["warnings"]`` (docs/predict.md, "Flags").
+        Returns
+        -------
+        pandas.DataFrame
+            One row per recording: ``recording``, ``steps``, ``windows``, ``p1``, ``p2`` (1/s, 1/s^2),
+            ``p1_std``, ``p2_std``, ``m3_from_p1``, ``m3_from_p2`` (kg, m3 = C3 / p1 and K3 / p2 for the run's car)
+            and ``flag`` (range, channels, run_error; empty when none). Each kind of flag also raises one
+            ``EstimateWarning`` and is listed in ``table.attrs["warnings"]`` (docs/predict.md, "Flags").
+
+        Raises
+        ------
+        InputError
+            A ``ValueError`` naming the bad input: a short recording, a non-finite or out-of-float32 value, another
+            ``dt``, bad ``windows`` or ``resample``, disagreeing shapes, or windows beyond the memory available.
         """
         if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or windows < 1:
             raise InputError("windows", windows, "an integer >= 1")

@@ -19,13 +19,30 @@ from hybrid_sysid.training.build import build_baseline, build_model, first_misfi
 
 
 def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estimator:
-    """The trained network of a run directory written by ``hybrid-sysid``.
+    """The trained network of a run directory written by ``hybrid-sysid``, as an estimator of recordings.
 
-    ``checkpoint``: None takes checkpoints/best.ckpt (what the run's metrics were computed with) or, when the
-    run never validated, last.ckpt; "best" or "last" takes that one. A directory without a config or checkpoint
-    raises InputError (a ValueError) in one line. A baseline run (``baseline=ls_*``: no network) estimates with
-    its least-squares fit (``checkpoint`` is then ignored). The run's metrics.json gives its own test error (the
-    flag run_error)."""
+    Parameters
+    ----------
+    run_dir : str or pathlib.Path
+        A run directory (it holds ``.hydra/config.yaml`` and ``checkpoints/``), never a checkpoint's path.
+    checkpoint : {None, "best", "last"}
+        None takes ``checkpoints/best.ckpt`` (what the run's metrics were computed with) or, when the run never
+        validated, ``last.ckpt``; "best" or "last" takes that one alone. A baseline run (``baseline=ls_*``, no
+        network) estimates with its least-squares fit and ignores it.
+
+    Returns
+    -------
+    Estimator
+        Its ``predict(seat_acc, body_acc, dt)`` gives a table per recording. The run's ``metrics.json`` gives its
+        own test error (the flag ``run_error``); None when unreadable.
+
+    Raises
+    ------
+    InputError
+        A ``ValueError``, in one line naming what is wrong: ``run_dir`` no path, no config or checkpoint, a
+        checkpoint that cannot be read or does not fit the run's network, a config naming a class outside the
+        package and its installed plugins, or values a command line could not give.
+    """
     if not isinstance(run_dir, (str, Path)):  # None, bytes or a number reached RunDir as a TypeError
         shown = Shown(repr(run_dir)[:80])
         raise InputError("run_dir", shown, "the path of a run directory, as a str or a pathlib.Path")

@@ -8,8 +8,18 @@ PARAMETERS = ("p1", "p2")
 
 
 def relative_deviation(pred: np.ndarray, true: np.ndarray) -> np.ndarray:
-    """|p - p_pred| / p (eq. 24) element by element: (n, 2) per window and parameter, or (n,) of one parameter.
-    The scores, tables and figures all compute it here."""
+    """|p - p_pred| / p (eq. 24) element by element; the scores, tables and figures all compute it here.
+
+    Parameters
+    ----------
+    pred, true : array_like
+        Estimates and true p: (n, 2) per window and parameter, or (n,) of one parameter.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, of their shape.
+    """
     pred, true = np.asarray(pred, dtype=np.float64), np.asarray(true, dtype=np.float64)
     return np.abs(true - pred) / np.abs(true)
 

@@ -57,6 +57,16 @@ def correct_gain(x: np.ndarray) -> np.ndarray:
     difference, it returns constants and ramps unchanged (to rounding, even on a large offset), so a state
     carried into a window keeps its constant-plus-ramp form. An edge sample has a neighbour on one side only;
     leaving it uncorrected is the filter with the missing neighbour extrapolated linearly.
+
+    Parameters
+    ----------
+    x : array_like
+        An integral sampled along its last axis (the trapezoid rule's output).
+
+    Returns
+    -------
+    numpy.ndarray
+        float64, a new array of ``x``'s shape.
     """
     x = np.asarray(x, dtype=np.float64)
     out = x.copy()
@@ -104,6 +114,25 @@ def relative_states(
     and more at high f, and a fit of the seat equation takes that up as too large a p: +0.2-0.3% on p1 and
     +0.3-0.5% on p2 by least squares on band-passed 500-step windows at dt = 5 ms, where the corrected
     regressors leave under 0.004% (tests/physics/test_integrator_gain.py).
+
+    Parameters
+    ----------
+    seat_acc, body_acc : array_like
+        Seat z'' and body y'' in m/s^2, the same shape, time along the last axis.
+    dt : float
+        The sampling interval in s.
+    measurement : {"paper", "consistent", "continuous"}
+        How the accelerations were recorded (``data.measurement``).
+
+    Returns
+    -------
+    rel_vel, rel_disp : numpy.ndarray
+        float64 arrays of the input's shape, in m/s and m.
+
+    Raises
+    ------
+    ConfigError
+        ``measurement`` not one of the three.
     """
     check_measurement(measurement)
     if measurement == "continuous":

@@ -60,7 +60,23 @@ class QuarterCar:
     seat_hardening: float = 0.0  # kappa, 1/m^2: the seat spring's force K3 (d + kappa d^3); 0 is the linear spring
 
     def parameters(self, m3):
-        """The unknowns (p1, p2) = (C3 / m3, K3 / m3); works on scalars and arrays alike."""
+        """The unknowns (p1, p2) = (C3 / m3, K3 / m3) of eq. 15; works on scalars and arrays alike.
+
+        Parameters
+        ----------
+        m3 : float or array_like
+            Seat-plus-passenger mass in kg.
+
+        Returns
+        -------
+        p1, p2 : float or numpy.ndarray
+            In 1/s and 1/s^2, of ``m3``'s shape.
+
+        Raises
+        ------
+        ConfigError
+            A mass <= 0, naming ``m3``.
+        """
         m3 = np.asarray(m3, dtype=float)
         if np.any(m3 <= 0):
             bad("m3", float(m3.min()), "masses > 0 kg")
@@ -169,6 +185,20 @@ def stable_dt_limit(
 
     The lightest seat is the stiffest mode; every corner of the range is checked. Found by bisection on the exact
     step map. A hardening seat spring is stiffer at amplitude: the limit is that of its small-amplitude motion.
+
+    Parameters
+    ----------
+    car : QuarterCar
+        The car's constants (default: the paper's).
+    m3_min, m3_max : float
+        The seat mass range in kg.
+    seat_spread : float
+        The relative spread s of C3 and K3 (``data.seat_spread``).
+
+    Returns
+    -------
+    float
+        The limit in s: 0.03615 for the paper's car and 50-200 kg.
     """
     ends = (1.0 - seat_spread, 1.0 + seat_spread) if seat_spread else (1.0,)
     cars = [replace(car, c3=car.c3 * a, k3=car.k3 * b) for a in ends for b in ends]
@@ -197,17 +227,37 @@ def simulate(
 ):
     """Simulate eq. 11 from a zero state and return the sensor channels (seat z'', body y'').
 
-    road: (*road_batch, n_steps) road displacement r_k; m3: seat mass(es) broadcastable with road_batch
-    (e.g. road (R, 1, N) with m3 (R, L) simulates every mass on every road). Returns two float64 arrays of
-    shape (*batch, n_steps).
-
     measurement "paper" records eq. 12 from the states at step k. "consistent" records the accelerations
     the integrator applied, (w_{k+1} - w_k) / dt and (v_{k+1} - v_k) / dt, so that re-integrating them
     reproduces the simulated velocities and states exactly (docs/discretisation.md, "The hybrid objective and the
     discretisation").
 
-    return_states=True adds a third item: a dict of the states at steps 0..n_steps-1, keys "u", "v", "w"
-    (wheel, body, seat velocity) and "x", "y", "z" (positions), for checks against other solvers.
+    Parameters
+    ----------
+    road : array_like
+        (*road_batch, n_steps) road displacement r_k in m.
+    m3 : float or array_like
+        Seat mass(es) in kg, broadcastable with road_batch: road (R, 1, N) with m3 (R, L) simulates every mass on
+        every road.
+    dt : float
+        The step in s.
+    car : QuarterCar
+        The car's constants.
+    measurement : {"paper", "consistent"}
+        The recording; continuous recordings come from ``physics.exact``.
+    return_states : bool
+        True adds a third item: a dict of the states at steps 0..n_steps-1, keys "u", "v", "w" (wheel, body,
+        seat velocity) and "x", "y", "z" (positions), for checks against other solvers.
+
+    Returns
+    -------
+    seat, body : numpy.ndarray
+        float64 arrays of shape (*batch, n_steps), in m/s^2.
+
+    Raises
+    ------
+    ConfigError
+        An unknown ``measurement``, ``dt`` <= 0 or a mass <= 0.
     """
     check_choice("measurement", measurement, STEPPED)  # continuous recordings come from physics.exact
     check_positive("dt", dt, "seconds")

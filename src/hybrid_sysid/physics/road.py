@@ -72,6 +72,31 @@ def road_profiles(
 
     Phases are uniform on [0, 2 pi), drawn from ``rng``. Every road shares one sine/cosine basis over
     (steps, waves), so sin(w s - phi) = sin(w s) cos(phi) - cos(w s) sin(phi) becomes two matrix products.
+
+    Parameters
+    ----------
+    road_classes : sequence of str
+        One ISO 8608 class letter, A to E, per road (eq. 5).
+    n_steps : int
+        Samples per road, >= 1.
+    dt : float
+        The step in s, > 0.
+    speed : float
+        The constant speed v in m/s, > 0 (eq. 6).
+    n_waves : int
+        M, the sines per road (eq. 2).
+    rng : numpy.random.Generator, int or None
+        The phases' generator, or its seed.
+
+    Returns
+    -------
+    numpy.ndarray
+        (n_roads, n_steps) float64 displacements in m.
+
+    Raises
+    ------
+    ConfigError
+        An unknown class or a value out of range, naming it.
     """
     classes = _check_classes(road_classes)
     check_int("n_steps", n_steps, 1)

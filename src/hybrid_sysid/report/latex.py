@@ -57,7 +57,24 @@ def to_latex(
     cells' widths), stacked, each block headed by a \\multicolumn per noise level over its parameters and a
     \\cmidrule under it; every row in two lines, "$m \\pm s$" (\\mathbf for the best row of a column,
     ^\\dagger where it is worse) and below it its interval; in LATEX_SIZE type. The rule and warnings follow as
-    text. With ``caption``, a table float."""
+    text.
+
+    Parameters
+    ----------
+    table : pandas.DataFrame
+        A comparison table (``report.tables``).
+    compare : str, optional
+        The swept key whose rows the marks compare (default ``objective``).
+    caption : str, optional
+        With it, a table float.
+    levels_per_block : int, optional
+        Noise levels side by side in one block.
+
+    Returns
+    -------
+    str
+        The LaTeX source.
+    """
     cols = cell_columns(table)
     names = [tex(str(n)) for n in table.index.names]
     nl = len(names)
