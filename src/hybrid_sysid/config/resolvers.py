@@ -10,9 +10,11 @@ import math
 from hydra.core.config_store import ConfigStore
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config.memory import dataset_bytes
 from hybrid_sysid.config.schema import Config, EvalConfig
 from hybrid_sysid.core.checks import bad
 from hybrid_sysid.data.spec import DatasetSpec
+from hybrid_sysid.physics.faults import fix_for
 
 
 def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
@@ -33,14 +35,10 @@ def p_prior(which: str, *, _root_: DictConfig) -> list[float]:
 
 def fault_fix(*, _root_: DictConfig) -> str:
     """``${fault_fix:}`` in conf/estimator/ls_fix.yaml: the classical fix (baselines.fixes) of the fault the config
-    simulates. A low-pass that differs between the sensors is, in the seat band, close to a delay, so it gets the
-    skew fix. With several faults on, the first of hardening, skew and gain; with none, "none" (the plain fit)."""
-    sensor = _root_.get("sensor") or {}
-    if float((_root_.get("car") or {}).get("seat_hardening", 0.0) or 0.0) > 0:
-        return "hardening"
-    if float(sensor.get("skew_max", 0.0) or 0.0) > 0 or sensor.get("lowpass_hz") or sensor.get("lowpass_range_hz"):
-        return "skew"
-    return "gain" if float(sensor.get("gain_spread", 0.0) or 0.0) > 0 else "none"
+    simulates, as each fault declares it (physics.faults: a low-pass that differs between the sensors is, in the
+    seat band, close to a delay, so it gets the skew fix). With several faults on, that of the lowest fix_rank
+    (hardening, then skew, then gain); with none, "none" (the plain fit)."""
+    return fix_for(_root_.get("sensor") or {}, _root_.get("car") or {})
 
 
 TORCH_GB = 2  # beside the dataset: torch, Lightning, the network, its batches (sacct: 0.54 GB RSS, data=tiny job)
@@ -50,8 +48,6 @@ def slurm_mem_gb(n_roads: int, n_masses: int, n_steps: int) -> int:
     """``${slurm_mem_gb:${data.n_roads},${data.n_masses},${data.n_steps}}`` in conf/launcher/slurm.yaml: the GB
     one job asks SLURM for, the dataset's size (config.memory.dataset_bytes: n_roads x n_masses x n_steps x 4
     channels x 8 bytes, and the road profiles) plus TORCH_GB, rounded up to a whole GB."""
-    from hybrid_sysid.config.memory import dataset_bytes
-
     return math.ceil(dataset_bytes(int(n_roads), int(n_masses), int(n_steps)) / 2**30 + TORCH_GB)
 
 

@@ -12,12 +12,11 @@ clean draws (classes, masses, roads, seat constants) are those of the same datas
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from hybrid_sysid.data.spec import DatasetSpec
+from hybrid_sysid.data.spec import CHANNELS, DatasetSpec
 from hybrid_sysid.physics import (
     STEPPED,
     continuous_recordings,
@@ -29,14 +28,11 @@ from hybrid_sysid.physics import (
 )
 from hybrid_sysid.physics.compiled import simulate_recordings
 from hybrid_sysid.physics.compiled_sensors import apply_faults, simulate_faulted
-from hybrid_sysid.physics.sensors import FaultDraws
+from hybrid_sysid.physics.faults import FaultDraws, apply, fault
+from hybrid_sysid.physics.faults.skew import DELAY_HALF_WIDTH
 
-CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")
 ARRAYS = CHANNELS + ("params", "m3", "c3", "k3", "road_id", "road_class")  # what a dataset holds, and the cache
 FAULT_STREAM = 0x5E2503  # the second word of the fault draws' seed, [data.seed, FAULT_STREAM]
-# the skew's interpolator: 25 taps, within ~1.2e-8 of the signal's peak up to half the Nyquist frequency
-# (docs/faults.md), below the float32 rounding of the stored channels (6e-8 of a value)
-DELAY_HALF_WIDTH = 12
 
 
 @dataclass
@@ -70,11 +66,9 @@ def fault_draws(spec: DatasetSpec) -> FaultDraws:
 
 
 def skew_margin(spec: DatasetSpec) -> int:
-    """Steps simulated past a recording's end, and rest (zeros) put before its start, for the skew's delay to read:
-    then every sample of the recording is interpolated from true samples, none from an edge's extension."""
-    if not spec.sensor.skew_max:
-        return 0
-    return DELAY_HALF_WIDTH + math.ceil(spec.sensor.skew_max / spec.dt) + 1
+    """Steps simulated past a recording's end, and rest (zeros) put before its start, for the faults to read (the
+    skew's delay): then every sample of the recording is made from true samples, none from an edge's extension."""
+    return spec.sensor.margin(spec.dt)
 
 
 def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
@@ -103,25 +97,28 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
 
     # float64 physics ends here: the network and the objectives work in float32
     draws = fault_draws(spec) if spec.sensor.active else None
-    if spec.measurement in STEPPED:
-        arguments = (roads, road_id, masses, spec.dt, spec.car, spec.measurement)
-        if draws is None:
-            channels = simulate_recordings(*arguments, c3=c3, k3=k3)
+    arguments = (roads, road_id, masses, spec.dt, spec.car, spec.measurement) if spec.measurement in STEPPED else ()
+    if arguments and draws is None:
+        channels = simulate_recordings(*arguments, c3=c3, k3=k3)
+    elif arguments and compiled(draws):
+        channels = simulate_faulted(*arguments, draws, spec.n_steps, margin, DELAY_HALF_WIDTH, c3=c3, k3=k3)
+    else:  # the numpy path: the exact solution, or a fault the kernel does not apply
+        if arguments:
+            clean = tuple(np.empty((len(masses), roads.shape[1])) for _ in range(4))
+            seat, body = simulate_recordings(*arguments, out=clean, c3=c3, k3=k3)[:2]
         else:
-            channels = simulate_faulted(*arguments, draws, spec.n_steps, margin, DELAY_HALF_WIDTH, c3=c3, k3=k3)
-    else:
-        seat, body = continuous_recordings(
-            road_amplitudes(classes, spec.n_waves),
-            phases,
-            wave_numbers(spec.n_waves) * spec.speed,
-            road_id,
-            masses,
-            spec.n_steps + margin,
-            spec.dt,
-            spec.car,
-            c3=c3,
-            k3=k3,
-        )
+            seat, body = continuous_recordings(
+                road_amplitudes(classes, spec.n_waves),
+                phases,
+                wave_numbers(spec.n_waves) * spec.speed,
+                road_id,
+                masses,
+                spec.n_steps + margin,
+                spec.dt,
+                spec.car,
+                c3=c3,
+                k3=k3,
+            )
         if draws is not None:
             seat, body = faulted(seat, body, draws, spec.dt, margin, spec.n_steps)
         rel = relative_states(seat, body, spec.dt, spec.measurement)
@@ -138,11 +135,16 @@ def generate_dataset(spec: DatasetSpec) -> SimulatedDataset:
     )
 
 
+def compiled(draws: FaultDraws) -> bool:
+    """Whether the compiled kernel applies every fault drawn (physics.compiled_sensors)."""
+    return all(fault(name).compiled for name, draw in draws.items() if draw is not None)
+
+
 def faulted(seat: np.ndarray, body: np.ndarray, draws: FaultDraws, dt: float, margin: int, n_steps: int):
     """The faulty sensors' (seat, body), float64 (n, n_steps), of clean channels simulated ``margin`` steps past
     n_steps: preceded by ``margin`` samples of rest (the car stands still before t0), faulted, cropped to the
     recording. What ``simulate_faulted`` does inside its kernel."""
     if margin:
         seat, body = (np.pad(x, ((0, 0), (margin, 0))) for x in (seat, body))
-    seat, body = apply_faults(seat, body, draws, dt, DELAY_HALF_WIDTH)
+    seat, body = (apply_faults if compiled(draws) else apply)(seat, body, draws, dt, DELAY_HALF_WIDTH)
     return seat[:, margin : margin + n_steps], body[:, margin : margin + n_steps]

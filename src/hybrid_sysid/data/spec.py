@@ -17,23 +17,21 @@ from hybrid_sysid.core.checks import bad, check_choice, check_int, check_number,
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, INTEGRATIONS, MEASUREMENTS, ROAD_CLASSES, STEPPED
 from hybrid_sysid.data.splits import Split, split_by_road
 from hybrid_sysid.physics import QuarterCar, stable_dt_limit
+from hybrid_sysid.physics.faults import SensorFaults, registered, settings
 from hybrid_sysid.physics.road import OMEGA_M
-from hybrid_sysid.physics.sensors import SensorFaults
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 4  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording;
 # 4: every class on an equal share of the roads (the split per class), the continuous re-integration's gain corrected
+CHANNELS = ("seat_acc", "body_acc", "rel_vel", "rel_disp")  # the channels a dataset holds for each recording
 # DatasetSpec's fields that live outside the config's data section: road.classes, the car and sensor groups
 OUTSIDE_DATA = {"road_classes", "car", "sensor"}
+DT_RTOL = 1e-9  # a recording's dt counts as another's (a run's data.dt, a file's other recordings) within this
 # the samples a band-pass must leave of each window (objective.filter, the least-squares baselines)
 MIN_FILTERED = 10
 SEED_MAX = 2**32 - 1  # numpy's and Lightning's seeds are 32-bit unsigned
 # a car's constant above this (kg, N/m, N s/m; a car's are 1e2 to 1e5) overflows the stability search's matrices
 CAR_MAX = 1e9
-# kappa above this: at d = 1 cm the cubic force is 1000 times the linear one, and a class E road's motion then
-# overflows the semi-implicit step into NaN (the step's stability is that of the linearised car)
-HARDENING_MAX = 1e7
-HARDENING_UNIT = "1/m^2; 35000 in car=hardening_seat"
 
 
 @dataclass(frozen=True)
@@ -84,17 +82,14 @@ class DatasetSpec:
         check_number("seat_spread", self.seat_spread, 0, 1, high_open=True, unit="a fraction of car.c3 and car.k3")
         if not (isinstance(self.seed, int) and 0 <= self.seed <= SEED_MAX):
             bad("seed", self.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
+        mismatches = settings("car")  # the car's faults (a hardening seat spring) check their own constants
         for name, value in asdict(self.car).items():
-            if name == "seat_hardening":  # 0: the linear seat spring
-                check_number("car.seat_hardening", value, 0, HARDENING_MAX, unit=HARDENING_UNIT)
-            elif not (isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= CAR_MAX):
+            if name not in mismatches and not (
+                isinstance(value, (int, float)) and math.isfinite(value) and 0 < value <= CAR_MAX
+            ):
                 bad(f"car.{name}", value, f"must be finite and > 0, at most {CAR_MAX:g} (kg, N/m, N s/m)")
-        if self.car.seat_hardening and self.measurement not in STEPPED:
-            bad(
-                "car.seat_hardening",
-                self.car.seat_hardening,
-                "0 with data.measurement = continuous: its exact solution is of the linear car (physics.exact)",
-            )
+        for fault in registered("car"):
+            fault.validate(self.car, self.dt, measurement=self.measurement)
 
     def validate_simulation(self) -> None:
         """``validate``'s checks of what only a simulation reads: the sensor faults, and the time step against
@@ -126,9 +121,11 @@ class DatasetSpec:
         payload["road_classes"] = list(self.road_classes)
         if not self.seat_spread:  # the paper's data keep their key
             payload.pop("seat_spread")
-        if not self.car.seat_hardening:  # so do all data of a linear seat spring
-            payload["car"].pop("seat_hardening")
-        if not self.sensor.active:  # and of ideal sensors
+        for name, setting in settings("car").items():  # so do all data of a linear seat spring
+            if payload["car"][name] == setting.default:
+                payload["car"].pop(name)
+        payload["sensor"] = self.sensor.key_values()  # and of ideal sensors (None: left out)
+        if payload["sensor"] is None:
             payload.pop("sensor")
         payload["simulator_version"] = SIMULATOR_VERSION
         return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()[:20]
