@@ -3,8 +3,8 @@
 Elapsed / done x remaining, the first estimate, said "about 32:36 left" when 2:16 remained. Three things made it
 wrong, and each has its answer here:
 
-- Start-up. A worker's first job pays the imports (7 s on two cores) and, with a cold cache, the dataset's
-  simulation (minutes with data=paper), which no later job pays again; the sweep's clock also counts the
+- Start-up. A worker's first job pays the imports (seconds: benchmarks/README.md) and, with a cold cache, the
+  dataset's simulation (minutes with data=paper), which no later job pays again; the sweep's clock also counts the
   launcher's own start. So a job's time is its own (its start to its end, in its worker), and a worker's
   first ("cold") job counts only its work as the record gives it (fit_seconds: training; a baseline's
   train_seconds: its fits), plus the overhead beyond the work that warm jobs show (scoring, writing).
