@@ -67,7 +67,7 @@ MAX_DEPTH = 64  # nesting of JSON arrays and objects, YAML sequences and mapping
 MAX_YAML_NODES = 100_000  # a YAML file's nodes with each alias counted as the whole node it repeats
 # a YAML file's scalar text (keys and values, in UTF-8 bytes) with each alias expanded: a run's saved config is about
 # 2 kB and a sweep's multirun.yaml about 8 kB, so 1 MiB is over 100 times either. Building a config walks every
-# string each alias repeats, a few microseconds a character: one 8 MiB scalar aliased 90,000 times took hours
+# string each alias repeats, so one long scalar aliased many times takes hours (benchmarks/README.md)
 MAX_YAML_BYTES = 2**20
 
 
@@ -108,8 +108,8 @@ def read_yaml_text(path: str | os.PathLike, limit: int = MAX_BYTES) -> str:
     import yaml
 
     text = read_text(path, limit)
-    # libyaml's composer, where PyYAML has it, builds the same node graph some 30 times faster: an 8.9 MB file is
-    # refused in a fraction of a second, not seconds (a report reads a run's config several times)
+    # libyaml's composer, where PyYAML has it, builds the same node graph far faster (benchmarks/README.md): a
+    # report reads a run's config several times
     loader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
     try:
         root = yaml.compose(text, Loader=loader)
