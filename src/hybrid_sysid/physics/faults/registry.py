@@ -17,7 +17,7 @@ from hybrid_sysid.physics.faults.base import Fault, Setting
 
 GROUP = "hybrid_sysid.faults"  # the entry point group of installed packages' faults
 _FAULTS: dict[str, Fault] = {}
-_installed: list[bool] = []  # non-empty once the installed packages' faults are registered
+_installed: list[bool] = []  # non-empty once register_installed has run
 
 
 def register(fault):
@@ -42,8 +42,9 @@ def unregister(name: str) -> None:
     _FAULTS.pop(name)
 
 
-def _register_installed() -> None:
-    """The faults installed packages declare (GROUP), once; an import that raises is a one-line ConfigError."""
+def register_installed() -> None:
+    """Register the faults installed packages declare (GROUP) that are not yet; an import that raises is a
+    one-line ConfigError naming the entry point. ``registered`` runs it once, at the registry's first reading."""
     _installed.append(True)
     for ep in entry_points(group=GROUP):
         try:
@@ -60,7 +61,7 @@ def _register_installed() -> None:
 def registered(section: str | None = None) -> list[Fault]:
     """The registered faults, in registration order; ``section``: those whose settings lie there."""
     if not _installed:
-        _register_installed()
+        register_installed()
     return [f for f in _FAULTS.values() if section is None or f.settings[0].section == section]
 
 
