@@ -144,3 +144,34 @@ def test_the_config_names_the_keys(make_cfg):
     assert message.startswith("data.n_steps = 400 is not allowed: must be >= data.window + 2 (objective.filter.taps")
     assert "\n" not in message
     validate(make_cfg("data=tiny", "objective=cross_segment", "data.window=100", "objective.filter.taps=61"))
+
+
+@pytest.mark.parametrize("target", ["ls", "eiv"])
+def test_recordings_of_several_lengths_padded_with_zeros_are_each_fitted_over_their_own_samples(dm, target):
+    """A user's recordings of several lengths come zero-padded to the longest (data.recordings): each row's fit
+    equals the fit of that recording alone, unpadded (numpy's lstsq for "ls"; a fit built on the short recordings
+    alone for "eiv"), with and without noise."""
+    lengths = np.array([800, 620, 800, 700, 620])
+    seat = dm.dataset.seat_acc[:5].copy()
+    body = dm.dataset.body_acc[:5].copy()
+    for i, n in enumerate(lengths):
+        seat[i, n:], body[i, n:] = 0.0, 0.0
+    padded = OutsideFit(seat, body, SPEC.dt, SPEC.measurement, W, FIR, target, lengths=lengths)
+    rows, starts = np.array([1, 0, 4, 3, 1]), np.array([30, 500, 420, 0, 211])
+    normals = np.random.default_rng(5).standard_normal((5, 2, 800))
+    for std in (0.0, 0.02):
+        got = padded.fit(rows, starts, std, normals)
+        for i, (row, start) in enumerate(zip(rows, starts)):
+            n = lengths[row]
+            s = seat[row : row + 1, :n].astype(np.float64) + std * normals[i : i + 1, 0, :n]
+            b = body[row : row + 1, :n].astype(np.float64) + std * normals[i : i + 1, 1, :n]
+            if target == "ls":
+                p, se = reference(s[0], b[0], start)
+            else:
+                alone = OutsideFit(s, b, SPEC.dt, SPEC.measurement, W, FIR, target).fit([0], [start])
+                p, se = alone["p_out"][0].numpy(), alone["se_out"][0].numpy()
+            np.testing.assert_allclose(got["p_out"][i].numpy(), p, rtol=1e-7)
+            np.testing.assert_allclose(got["se_out"][i].numpy(), se, rtol=1e-6)
+    # padding read as samples would move the fit of a short recording: the unpadded fit differs from it
+    blind = OutsideFit(seat, body, SPEC.dt, SPEC.measurement, W, FIR, target).fit([1], [30])["p_out"].numpy()
+    assert np.abs(blind / padded.fit([1], [30])["p_out"].numpy() - 1).max() > 1e-3

@@ -119,3 +119,24 @@ def test_a_labelled_run_on_files_scores_eq_24_against_the_labels(tmp_path, windo
         "bytes": len(data),
         "sha256": hashlib.sha256(data).hexdigest(),
     }
+
+
+def test_cross_segment_trains_on_recordings_of_several_lengths(tmp_path):
+    """objective=cross_segment reads each window's outside samples: on files of 900 and 1,100 steps it trains
+    without labels and tests recordings of both lengths, each against the fit of its own whole recording (the
+    truth here). tests/data/test_outside_fit.py checks each row's outside fit against the unpadded recording's."""
+    short = seat_recordings(16, 900, DT, seed=5)
+    long = seat_recordings(16, 1100, DT, seed=6)
+    folder = tmp_path / "files"
+    names = write_folder(folder, short[0], short[1], DT)  # rec000.csv ..., and the longer ones in one .npz
+    np.savez(folder / "long.npz", seat_acc=long[0], body_acc=long[1], dt=DT)
+    truth = dict(zip(names + [f"long:{i}" for i in range(16)], map(tuple, np.concatenate([short[2], long[2]]))))
+    overrides = ["data=recordings", f"data.path={folder}", "objective=cross_segment", "trainer=debug"]
+    overrides += ["trainer.max_steps=60", "trainer.eval_every_n_steps=30", "data.window=200"]
+    overrides += ["data.val_fraction=0.25"]
+    record = run(tmp_path / "run", overrides)
+    assert record["status"] == "completed" and record["reference"] == "fit over the whole recording"
+    predictions = pd.read_csv(tmp_path / "run" / "predictions.csv", converters={"recording": str})
+    test = predictions[(predictions.split == "test") & (predictions.noise_std == 0)]
+    assert {r.startswith("long:") for r in test.recording} == {True, False}  # both lengths reach the test split
+    np.testing.assert_allclose(test[["p1_true", "p2_true"]].to_numpy(), [truth[r] for r in test.recording], rtol=1e-5)

@@ -12,7 +12,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config.targets import build
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.data.recordings_files import UNNAMED, index, split_recordings
-from hybrid_sysid.data.spec import MIN_FILTERED, DatasetSpec
+from hybrid_sysid.data.spec import DT_RTOL, MIN_FILTERED, DatasetSpec
 from hybrid_sysid.physics.sensors import SensorFaults
 
 LABEL_MONITORS = ("val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev")  # what model selection reads labels through
@@ -56,7 +56,6 @@ def check_recordings(cfg: DictConfig, spec: DatasetSpec, training: bool = True, 
     objective = build(cfg.objective, "objective") if cfg.get("baseline") is None else None
     if trains and d.get("labels") is None:
         check_label_free(cfg, objective)
-    from hybrid_sysid.data.readers import DT_RTOL
 
     idx = index(d.path)
     if abs(idx.dt - d.dt) > DT_RTOL * idx.dt:
@@ -64,14 +63,6 @@ def check_recordings(cfg: DictConfig, spec: DatasetSpec, training: bool = True, 
     steps = idx.steps
     taps = 0 if objective is None or objective.outside_fir is None else len(objective.outside_fir)
     outside = "objective.outside_fir (objective=cross_segment)" if taps else None
-    if outside and steps.min() != steps.max():
-        i, j = int(steps.argmin()), int(steps.argmax())
-        first, last = idx.recordings[i], idx.recordings[j]
-        bad(
-            f"data.path = {idx.path_of(first.file)}: recording {first.name!r}",
-            Shown(f"{first.steps} steps, {last.name!r} {last.steps}"),
-            f"recordings of one length for {outside}, which reads whole recordings",
-        )
     need, why = int(d.window), "data.window"
     if outside:
         extra = 2 * (taps - 1) + 2 * (taps + MIN_FILTERED - 1)

@@ -53,6 +53,7 @@ class OutsideFit:
         window: int,
         fir,
         target: str | None = None,
+        lengths: np.ndarray | None = None,
     ):
         self.seat, self.body = seat_acc, body_acc
         self.dt, self.measurement, self.window = dt, measurement, window
@@ -60,17 +61,27 @@ class OutsideFit:
         check_choice("target", self.target, TARGETS)
         self.fir = np.asarray(fir, dtype=np.float64)
         self.n_steps = seat_acc.shape[1]
-        # torch's FFT in float64 takes about a third of numpy's time here (physics.filters.fir_valid's), the
-        # larger part of this fit's cost; a transform as long as the recording suffices, as the circular
-        # wrap-around reaches only the taps - 1 edge samples that 'valid' drops
-        self.nfft = 1 << int(np.ceil(np.log2(self.n_steps)))
-        self.fir_fft = torch.fft.rfft(torch.from_numpy(self.fir), self.nfft)
+        # a user's recordings of several lengths are zero-padded to the longest (data.recordings): each row is
+        # then fitted over its own samples only, rows of one length together
+        self.lengths = np.full(len(seat_acc), self.n_steps) if lengths is None else np.asarray(lengths, np.int64)
+        self._fir_fft: dict[int, torch.Tensor] = {}
 
-    def mask(self, starts) -> np.ndarray:
+    def fir_fft(self, n_steps: int) -> tuple[int, torch.Tensor]:
+        """The FFT length for recordings of ``n_steps`` and the taps' transform at it. torch's FFT in float64
+        takes about a third of numpy's time here (physics.filters.fir_valid's), the larger part of this fit's cost;
+        a transform as long as the recording suffices, as the circular wrap-around reaches only the taps - 1 edge
+        samples that 'valid' drops."""
+        nfft = 1 << int(np.ceil(np.log2(n_steps)))
+        if nfft not in self._fir_fft:
+            self._fir_fft[nfft] = torch.fft.rfft(torch.from_numpy(self.fir), nfft)
+        return nfft, self._fir_fft[nfft]
+
+    def mask(self, starts, n_steps: int | None = None) -> np.ndarray:
         """(B, n_steps - taps + 1) of 1.0 where the filtered sample's FIR support (inputs j .. j + taps - 1) lies
-        wholly before or after the window at each start, 0.0 elsewhere."""
+        wholly before or after the window at each start, 0.0 elsewhere (n_steps: the recordings', by default the
+        dataset's)."""
         taps = len(self.fir)
-        j = np.arange(self.n_steps - taps + 1)
+        j = np.arange((self.n_steps if n_steps is None else n_steps) - taps + 1)
         s = np.asarray(starts, dtype=np.int64)[:, None]
         return ((j + taps - 1 < s) | (j >= s + self.window)).astype(np.float64)
 
@@ -83,23 +94,33 @@ class OutsideFit:
         rows, starts = np.asarray(rows, dtype=np.int64), np.asarray(starts, dtype=np.int64)
         stds = np.broadcast_to(np.asarray(std, dtype=np.float64), rows.shape)
         p, se = np.empty((len(rows), 2)), np.empty((len(rows), 2))
-        for i in range(0, len(rows), CHUNK):
-            sl = slice(i, i + CHUNK)
-            seat = self.seat[rows[sl]].astype(np.float64)
-            body = self.body[rows[sl]].astype(np.float64)
-            if normals is not None:
-                seat += stds[sl, None] * normals[sl, 0]
-                body += stds[sl, None] * normals[sl, 1]
-            rel_vel, rel_disp = relative_states(seat, body, self.dt, self.measurement)
-            spectra = torch.fft.rfft(torch.from_numpy(np.stack([seat, rel_vel, rel_disp])), self.nfft)
-            filtered = torch.fft.irfft(spectra * self.fir_fft, self.nfft)[..., len(self.fir) - 1 : self.n_steps].numpy()
-            out = fit_seat(*filtered, weights=self.mask(starts[sl]))
-            p[sl], se[sl] = out.p, out.se
-            if self.target == "eiv":
-                model = eiv_model(self.measurement)
-                p_eiv, se_eiv, ok = fit_joined(seat, body, starts[sl], self.window, self.dt, model, p0=out.p)
-                with np.errstate(invalid="ignore", divide="ignore"):
-                    ok &= (np.abs(np.log(p_eiv / out.p)) <= np.log(MAX_CORRECTION)).all(axis=1)
-                p[sl] = np.where(ok[:, None], p_eiv, p[sl])
-                se[sl] = np.where(ok[:, None], se_eiv, se[sl])
+        lengths = self.lengths[rows]
+        for n in np.unique(lengths):
+            same = np.flatnonzero(lengths == n)
+            for i in range(0, len(same), CHUNK):
+                at = same[i : i + CHUNK]
+                seat = self.seat[rows[at], :n].astype(np.float64)
+                body = self.body[rows[at], :n].astype(np.float64)
+                if normals is not None:
+                    seat += stds[at, None] * normals[at, 0, :n]
+                    body += stds[at, None] * normals[at, 1, :n]
+                p[at], se[at] = self._fit(seat, body, starts[at])
         return {"p_out": torch.from_numpy(p), "se_out": torch.from_numpy(se)}
+
+    def _fit(self, seat: np.ndarray, body: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """fit's, for rows of one length (B, n) in float64."""
+        n = seat.shape[1]
+        rel_vel, rel_disp = relative_states(seat, body, self.dt, self.measurement)
+        nfft, fir_fft = self.fir_fft(n)
+        spectra = torch.fft.rfft(torch.from_numpy(np.stack([seat, rel_vel, rel_disp])), nfft)
+        filtered = torch.fft.irfft(spectra * fir_fft, nfft)[..., len(self.fir) - 1 : n].numpy()
+        out = fit_seat(*filtered, weights=self.mask(starts, n))
+        p, se = out.p, out.se
+        if self.target == "eiv":
+            model = eiv_model(self.measurement)
+            p_eiv, se_eiv, ok = fit_joined(seat, body, starts, self.window, self.dt, model, p0=out.p)
+            with np.errstate(invalid="ignore", divide="ignore"):
+                ok &= (np.abs(np.log(p_eiv / out.p)) <= np.log(MAX_CORRECTION)).all(axis=1)
+            p = np.where(ok[:, None], p_eiv, p)
+            se = np.where(ok[:, None], se_eiv, se)
+        return p, se

@@ -126,7 +126,7 @@ class WindowCutter:
         self.outside = None
         if outside_fir is not None:
             self.outside = OutsideFit(
-                ds.seat_acc, ds.body_acc, self.dt, self.measurement, window, outside_fir, outside_target
+                ds.seat_acc, ds.body_acc, self.dt, self.measurement, window, outside_fir, outside_target, self.lengths
             )
         self.fir = None
         if fir is not None:

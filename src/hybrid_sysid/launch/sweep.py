@@ -32,13 +32,13 @@ from hybrid_sysid.launch.progress import count_done, header_of, job_line, mark_s
 from hybrid_sysid.launch.state import PROCESS
 from hybrid_sysid.launch.time_left import work_seconds
 from hybrid_sysid.runs.sweepdir import SweepDir
+from hybrid_sysid.training.tracking.mlflow_store import log_sweep
 
 log = logging.getLogger("hybrid_sysid")
 # what the sweep's end needs (scipy.stats, matplotlib, pandas: seconds of imports). The parent loads them in a
 # thread while the jobs run, after its launcher is under way, so the end does not wait for them. A sweep that ends
 # first cancels the load and imports them itself.
 REPORT_MODULES = (
-    "hybrid_sysid.experiments",
     "hybrid_sysid.report.paper",
     "hybrid_sysid.report.summary",
     "hybrid_sysid.report.terminal",
@@ -116,11 +116,9 @@ class SweepSummary(Callback):
             self._preload = None
             cancel.set()
             thread.join()
-        import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
         from hybrid_sysid.report.paper import write_reproduction
-        from hybrid_sysid.report.summary import threads_warning, write_summary
+        from hybrid_sysid.report.summary import reference_note, threads_warning, write_summary
         from hybrid_sysid.report.terminal import to_console
-        from hybrid_sysid.training.tracking.mlflow_store import log_sweep
 
         sweep_dir = Path(config.hydra.sweep.dir)
 
@@ -129,6 +127,8 @@ class SweepSummary(Callback):
             print("\nmean relative deviation on the test split [%], mean ± std over seeds [95% t interval]")
             print(f"(the whole table in one: {sweep_dir / 'summary.md'})\n")
             print(to_console(table, compare=self.compare, bound=table.attrs.get("bound")), flush=True)
+            for line in reference_note(df, "test")[:1]:
+                print(line.replace("`", ""), flush=True)
             warning = threads_warning(df)
             if warning:
                 log.warning(warning)

@@ -17,6 +17,7 @@ import pandas as pd
 
 from hybrid_sysid.core.checks import bad
 from hybrid_sysid.core.files import readable
+from hybrid_sysid.core.overrides import parse_overrides
 from hybrid_sysid.model.metrics import PARAMETERS, relative_deviation
 from hybrid_sysid.runs.layout import PREDICTIONS, RECORD
 from hybrid_sysid.runs.reading import find_runs as runs_below
@@ -40,6 +41,7 @@ TAIL = [
     "git_commit",
     "git_dirty",
     "cpu",
+    "reference",
 ]
 RESULT = ["split", "noise_std", "parameter", "mean_rel_dev", "std_rel_dev", "n"]  # required in a results row
 BOUND = ["bound", "bound_output", "efficiency"]  # a test row's Cramér-Rao bound (absent from older records)
@@ -87,12 +89,10 @@ def find_runs(paths) -> list[Path]:
     return sorted(found, key=lambda p: natural_key(p.parts))
 
 
-def _overrides(items) -> dict[str, str]:
-    out = {}
-    for item in items if isinstance(items, list) else []:
-        key, _, value = readable(str(item)).partition("=")  # a path outside ASCII, as its table and figures show it
-        out[key.lstrip("+")] = value  # "+key=v" / "++key=v" set the same key as "key=v"
-    return out
+def _overrides(parsed) -> dict[str, str]:
+    """A run's parsed overrides as columns: "+key=v", "++key=v" and "~key" name the key of "key=v" (a deletion
+    reads as empty); a path outside ASCII as its table and figures show it."""
+    return {readable(o.key): "" if o.deletes or o.value is None else readable(o.value) for o in parsed}
 
 
 BOUND_MAX = 1e6  # a relative deviation of 1e8 %: far above any window's bound (116% at noise 0.1), and x 100 finite
@@ -103,6 +103,11 @@ def _bound(value):
     a negative, infinite, huge or text bound made the table's bound row read -12.50% or inf."""
     ok = isinstance(value, (int, float)) and not isinstance(value, bool) and 0 <= value <= BOUND_MAX
     return value if ok else None
+
+
+def _text(value) -> str:
+    """A record's text field as one short line: a received record may hold anything there."""
+    return " ".join(str(value).split())[:80]
 
 
 def _rows_of(run_dir: Path, name: str) -> list[dict]:
@@ -121,8 +126,10 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
             "git_commit": rec.get("git_commit"),
             "git_dirty": rec.get("git_dirty"),
             "cpu": rec.get("cpu"),
+            # what the deviations are measured from: "labels", or a fit where a user's recordings have none
+            "reference": _text(rec.get("reference", "labels")),
         }
-        overrides = _overrides(rec.get("overrides"))
+        overrides = _overrides(parse_overrides(rec.get("overrides")))
         results = [
             {**{k: r[k] for k in RESULT}, "windows": r.get("windows", 1), **{k: _bound(r.get(k)) for k in BOUND}}
             for r in rec.get("results") or []
@@ -134,7 +141,7 @@ def _rows_of(run_dir: Path, name: str) -> list[dict]:
     except (DamagedFile, TypeError, KeyError, AttributeError) as exc:
         # Hydra writes .hydra/overrides.yaml before a job starts, so a job whose record is corrupt still has a
         # known configuration and lands in the right row of the table
-        overrides = _overrides(run.overrides())
+        overrides = _overrides(run.parsed_overrides())
         seed = overrides.get("seed", "")
         base = {
             "run": name,

@@ -86,6 +86,20 @@ def tested_table(df: pd.DataFrame, root: Path, split: str = "test", metric: str 
     return table
 
 
+def reference_note(df: pd.DataFrame, split: str) -> list[str]:
+    """Which runs' deviations are not from true values: runs on a user's recordings without labels measure each
+    estimate against a fit (the record's ``reference``), and the table must say so."""
+    if "reference" not in df:
+        return []
+    rows = df[(df.status == "completed") & (df.split == split) & (df.reference.fillna("labels") != "labels")]
+    if rows.empty:
+        return []
+    runs = rows.drop_duplicates("run")
+    names = ", ".join(f"`{r}`" for r in runs.run[:5]) + (", ..." if len(runs) > 5 else "")
+    refs = " / ".join(sorted(set(runs.reference)))
+    return [f"Deviations from the {refs}, not from true values (recordings without labels): {names}.", ""]
+
+
 def bound_note(bound) -> list[str]:
     """What the table's Cramér-Rao bound row means (markdown.bound_rows), when it has one."""
     if bound is None or bound.empty:
@@ -131,6 +145,7 @@ def write_summary(
         "",
         to_markdown(table, compare=compare, bound=table.attrs.get("bound")),
         *bound_note(table.attrs.get("bound")),
+        *reference_note(df, split),
         *([threads_warning(df), ""] if threads_warning(df) else []),
         "## Failed jobs",
         "",
