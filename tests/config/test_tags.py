@@ -106,6 +106,7 @@ def saved_without_tags(tmp_path):
     """A run directory whose saved config was written before tags existed."""
     old = OmegaConf.to_container(composed(), resolve=False)
     del old["tags"]
+    del old["schema_version"]  # saved before the schema had versions
     (tmp_path / ".hydra").mkdir()
     (tmp_path / ".hydra" / "config.yaml").write_text(yaml.safe_dump(old))
     return OmegaConf.create(old)

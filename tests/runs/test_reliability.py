@@ -120,6 +120,7 @@ def test_resume_accepts_a_config_saved_before_the_faults_and_the_noise_range(tmp
     saved = OmegaConf.load(path)
     for node, key in ((saved, "sensor"), (saved.car, "seat_hardening"), (saved.noise, "train_std_max")):
         del node[key]
+    del saved["schema_version"]  # written before the schema had versions
     OmegaConf.save(saved, path)
     check_resume(RunDir(run), make_cfg(*TINY))
     with pytest.raises(ConfigError, match="sensor.skew_max"):

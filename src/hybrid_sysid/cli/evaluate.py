@@ -27,6 +27,7 @@ from hybrid_sysid import config
 from hybrid_sysid.cli.job import Preflight, checks_complete, draws_figures, run_job
 from hybrid_sysid.cli.process import console_main, fail
 from hybrid_sysid.config import Config, flatten, validate
+from hybrid_sysid.config.versions import upgraded
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.options import EVAL_OVERRIDABLE
 from hybrid_sysid.runs.rundir import RunDir
@@ -87,14 +88,13 @@ def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictCon
 
 def lacking(saved: DictConfig, cfg: DictConfig) -> list[str]:
     """The keys of ``cfg`` (the saved config merged into the schema) that the saved file does not hold, but for
-    those whose default does what a run saved before them did (runs.resume.ADDED) and those the schema leaves
-    unset (null, {}): Hydra saves every key of the schema, so a key lacking is a file cut short."""
-    from hybrid_sysid.runs.resume import ADDED
-
+    those added since its schema version whose default does what that run did (config.versions) and those the
+    schema leaves unset (null, {}): Hydra saves every key of the schema, so a key lacking is a file cut short."""
     have = flatten(OmegaConf.to_container(saved, resolve=False))
+    filled = upgraded(have)
     full = flatten(OmegaConf.to_container(cfg, resolve=False))
     unset = [None, {}, "???"]  # "???": a section with no value at all, which OmegaConf.missing_keys names
-    return [k for k, v in full.items() if k not in have and v not in unset and not (k in ADDED and ADDED[k] == v)]
+    return [k for k, v in full.items() if k not in have and v not in unset and not (k in filled and filled[k] == v)]
 
 
 def validate_saved(cfg: DictConfig, run_dir: Path) -> None:

@@ -16,6 +16,7 @@ from typing import Any, Dict, List, Optional
 
 from omegaconf import MISSING
 
+from hybrid_sysid.config.versions import VERSION
 from hybrid_sysid.data.spec import OUTSIDE_DATA, DatasetSpec, WindowSettings
 from hybrid_sysid.model.optim import OptimSettings
 from hybrid_sysid.physics import QuarterCar
@@ -155,6 +156,9 @@ class TunedConfig:
 
 @dataclass
 class Config:
+    # the schema's version, saved with the config (first, so a file cut short keeps it): a reader fills in the keys
+    # added since (config.versions)
+    schema_version: int = VERSION
     # what a job does (core.options.TASKS): one run, a transfer chain (transfer:), a tuned comparison (tuned:)
     task: str = "train"
     seed: int = 0

@@ -15,7 +15,7 @@ from dataclasses import asdict, fields
 
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.config import recordings_checks
+from hybrid_sysid.config import recordings_checks, versions
 from hybrid_sysid.config.loggers import validate_callbacks, validate_loggers
 from hybrid_sysid.config.memory import check_memory
 from hybrid_sysid.config.paths import check_paths
@@ -58,28 +58,16 @@ def config_key(key: str) -> str:
 
 
 def validate(cfg: DictConfig, training: bool = True, trains: bool = True) -> None:
-    """Every check of a composed config, before any work.
-
-    Parameters
-    ----------
-    cfg : omegaconf.DictConfig
-        The composed config (a command line's, or a received run's saved one).
-    training : bool
-        False: a received run's saved config read to estimate with, without what only training here needs
-        (loggers, callbacks, the dataset in memory, data.path's files).
-    trains : bool
-        False: an evaluation.
-
-    Raises
-    ------
-    ConfigError
-        The first bad value, naming its config key, the value and what is allowed.
-    """
+    """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed.
+    ``training=False``: a received run's saved config read to estimate with, without what only training here
+    needs (loggers, callbacks, the dataset in memory, data.path's files). ``trains=False``: an evaluation."""
     _check_known_keys(cfg)
     # typed values (derived ones are checked later); the car's constants have their own check
     _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
     if not 0 <= cfg.seed <= SEED_MAX:
         bad("seed", cfg.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
+    if not 0 <= cfg.get(versions.KEY, versions.VERSION) <= versions.VERSION:  # a saved config's own, or this one's
+        bad(versions.KEY, cfg[versions.KEY], f"a version of the config schema, 0 to {versions.VERSION}")
     for key, value in cfg.car.items():
         if key not in CAR_FIELDS:
             bad(f"car.{key}", value, f"unknown; the car's constants are {', '.join(CAR_FIELDS)}")

@@ -9,6 +9,7 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import flatten
+from hybrid_sysid.config.versions import upgraded
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.runs import layout
 from hybrid_sysid.runs.reading import load_config
@@ -28,22 +29,6 @@ RESUME_FREE = {
     "noise.curve_std",
     "tags",
 }
-# keys added after a run may have been saved, at the value that does what that run did: a saved config without
-# them and one with this value are the same run (a value other than this one is another run)
-ADDED = {
-    "noise.train_std_max": None,
-    "car.seat_hardening": 0.0,
-    "sensor.gain_spread": 0.0,
-    "sensor.skew_max": 0.0,
-    "sensor.lowpass_hz": None,
-    "sensor.lowpass_range_hz": None,
-    "transfer.anchored_objectives": [],
-    "trainer.num_nodes": 1,
-    "tags": [],
-    "data.path": None,
-    "data.labels": None,
-    "data.module": None,
-}
 
 
 def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
@@ -61,8 +46,9 @@ def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
         why = f"{type(exc).__name__}: {' '.join(str(exc).split())[:200]}"
         warn_uncompared(f"{run.config_file} cannot be read ({why}); resuming without comparing the configs")
         return
-    now = flatten(OmegaConf.to_container(cfg, resolve=False))
-    was = flatten(saved if isinstance(saved, dict) else {})
+    now = upgraded(flatten(OmegaConf.to_container(cfg, resolve=False)))
+    file = flatten(saved if isinstance(saved, dict) else {})
+    was = upgraded(file)  # a key added since it was saved: the run did what its default does
     differ = [k for k in sorted(set(now) | set(was)) if not _resume_free(k) and _value(now, k) != _value(was, k)]
     held = [k for k in differ if k in was]
     if differ and not held:  # every difference is a key the file lacks: a damaged file, not another run
@@ -72,7 +58,7 @@ def check_resume(run: RunDir, cfg: DictConfig, overrides=()) -> None:
             "resume",
             Shown(str(run.path)),
             f"its {layout.CONFIG} is damaged: it lacks {len(lacking)} keys ({', '.join(lacking[:3])}"
-            f"{', ...' if len(lacking) > 3 else ''}) and the {len(was)} it holds agree with this config; "
+            f"{', ...' if len(lacking) > 3 else ''}) and the {len(file)} it holds agree with this config; "
             f"rewrite it with `{command} > {run.config_file}` and resume again",
         )
     if differ:
@@ -137,6 +123,6 @@ def _resume_free(key: str) -> bool:
 
 def _value(flat: dict, key: str):
     """A flattened config's value at ``key``; an empty mapping counts as unset (a run saved before a group such as
-    callbacks existed lacks the key that now holds {}), and so does a key of ADDED at its value."""
+    callbacks existed lacks the key that now holds {})."""
     value = flat.get(key, "(unset)")
-    return "(unset)" if value == {} or (key in ADDED and value == ADDED[key]) else value
+    return "(unset)" if value == {} else value

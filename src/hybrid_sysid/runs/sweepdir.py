@@ -12,11 +12,11 @@ from pathlib import Path
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import flatten
+from hybrid_sysid.config.versions import upgraded
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.runs import layout
 from hybrid_sysid.runs.reading import load_config, read_yaml
-from hybrid_sysid.runs.resume import ADDED
 
 KEY = "hydra.sweep.dir"
 ABSENT = "(absent)"
@@ -155,9 +155,9 @@ def _task(values: dict) -> dict:
 
 def first_difference(there: dict, here: dict):
     """The first dotted key whose value differs between two plain configs, as (key, there, here); None when equal.
-    A key added since a config was saved (runs.resume.ADDED) reads as its default there: a sweep or run made
+    A key added since a config was saved (config.versions) reads as its default there: a sweep or run made
     before ``tags`` existed is the same config as one with ``tags: []``."""
-    was, now = ({**ADDED, **flatten(c)} for c in (there, here))
+    was, now = (upgraded(flatten(c)) for c in (there, here))
     key = next((k for k in sorted(was.keys() | now.keys()) if was.get(k, ABSENT) != now.get(k, ABSENT)), None)
     return None if key is None else (key, was.get(key, ABSENT), now.get(key, ABSENT))
 
