@@ -58,9 +58,23 @@ def config_key(key: str) -> str:
 
 
 def validate(cfg: DictConfig, training: bool = True, trains: bool = True) -> None:
-    """Every check, before any work; raises ConfigError naming the config key, the value and what is allowed.
-    ``training=False``: a received run's saved config read to estimate with, without what only training here
-    needs (loggers, callbacks, the dataset in memory, data.path's files). ``trains=False``: an evaluation."""
+    """Every check of a composed config, before any work.
+
+    Parameters
+    ----------
+    cfg : omegaconf.DictConfig
+        The composed config (a command line's, or a received run's saved one).
+    training : bool
+        False: a received run's saved config read to estimate with, without what only training here needs
+        (loggers, callbacks, the dataset in memory, data.path's files).
+    trains : bool
+        False: an evaluation.
+
+    Raises
+    ------
+    ConfigError
+        The first bad value, naming its config key, the value and what is allowed.
+    """
     _check_known_keys(cfg)
     # typed values (derived ones are checked later); the car's constants have their own check
     _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
