@@ -20,6 +20,7 @@ from hybrid_sysid.config.versions import VERSION
 from hybrid_sysid.data.spec import OUTSIDE_DATA, DatasetSpec, WindowSettings
 from hybrid_sysid.model.optim import OptimSettings
 from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.physics.faults import settings as fault_settings
 
 CONF_DIR = str(Path(__file__).resolve().parents[1] / "conf")  # inside the package, so an installed wheel has it
 
@@ -74,15 +75,17 @@ class NoiseConfig:
     curve_std: Optional[List[float]] = None
 
 
-@dataclass
-class SensorConfig:
-    """The recording's sensor faults (conf/sensor; physics.sensors.SensorFaults, docs/faults.md), all off by
-    default; drawn per recording, part of the dataset's cache key when on."""
+def sensor_section() -> type:
+    """The recording's sensor faults (conf/sensor, docs/faults.md) as a section: the settings of every registered
+    sensor fault (hybrid_sysid.physics.faults), all off by default; drawn per recording, keyed in the cache when on."""
+    section = make_dataclass(
+        "SensorConfig", [(name, s.type, field(default=s.default)) for name, s in fault_settings("sensor").items()]
+    )
+    section.__doc__ = "The settings of every registered sensor fault (hybrid_sysid.physics.faults), as a section."
+    return section
 
-    gain_spread: float = 0.0  # each sensor's gain uniform in [1 - s, 1 + s]
-    skew_max: float = 0.0  # seconds: the body sensor's delay against the seat sensor, uniform in [-skew_max, skew_max]
-    lowpass_hz: Optional[List[float]] = None  # [seat, body] cut-offs, Hz, of a 2nd-order Butterworth per sensor
-    lowpass_range_hz: Optional[List[float]] = None  # [lo, hi] Hz: each sensor of each recording draws its cut-off
+
+SensorConfig = sensor_section()  # of the faults registered when the schema is imported (installed ones included)
 
 
 def section_of(owner: type, name: str) -> type:
