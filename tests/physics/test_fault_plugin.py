@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from hybrid_sysid.config.schema import sensor_section
+from hybrid_sysid.config.versions import VERSION, upgraded
 from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.data.cache import cache_path, get_dataset
 from hybrid_sysid.data.dataset import FAULT_STREAM, fault_draws, generate_dataset
@@ -103,6 +104,8 @@ def test_the_offset_joins_the_config_section_and_the_fix_choice(before_offset):
     assert section["offset_std"] == 0.0 and "gain_spread" in section
     assert fix_for({"offset_std": STD}, {}) == "none"  # its own fix: none
     assert fix_for({"offset_std": STD, "gain_spread": 0.03}, {}) == "gain"
+    # a run saved before the fault existed lacks its key and ran without it: read as its default (config.versions)
+    assert upgraded({"schema_version": VERSION})["sensor.offset_std"] == 0.0
 
 
 def test_an_unregistered_fault_is_no_setting():

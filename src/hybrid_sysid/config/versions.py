@@ -8,6 +8,8 @@ run as one holding the default. A key of the config's own version that it lacks 
 
 from __future__ import annotations
 
+from hybrid_sysid.physics.faults import section_defaults as fault_defaults
+
 KEY = "schema_version"
 VERSION = 1  # the version this package writes; one more with each row of ADDED that a change adds
 # (version, dotted key, the default that does what a config saved before the key existed did)
@@ -34,8 +36,12 @@ def version_of(flat: dict) -> int:
 
 
 def added_since(version: int) -> dict:
-    """{dotted key: default} of the keys added after ``version``."""
-    return {key: default for since, key, default in ADDED if since > version}
+    """{dotted key: default} of the keys added after ``version``, and of each registered fault's setting the table
+    does not list (a fault added since, the package's or an installed one: a config without it ran without it, as
+    its default, off, does), so adding a fault adds no row here."""
+    listed = {key for _, key, _ in ADDED}
+    faults = {key: default for key, default in fault_defaults().items() if key not in listed}
+    return {**faults, **{key: default for since, key, default in ADDED if since > version}}
 
 
 def upgraded(flat: dict) -> dict:
