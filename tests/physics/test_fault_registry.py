@@ -11,7 +11,7 @@ from omegaconf import OmegaConf
 
 from hybrid_sysid.config.schema import SensorConfig
 from hybrid_sysid.core.checks import ConfigError
-from hybrid_sysid.core.options import EVAL_OVERRIDABLE
+from hybrid_sysid.core.options import EVAL_OVERRIDABLE, FIXES
 from hybrid_sysid.physics.faults import (
     GROUP,
     Fault,
@@ -57,6 +57,10 @@ def test_the_config_section_is_made_of_the_sensor_faults_settings(make_cfg):
 
 def test_an_evaluation_may_change_every_fault_setting():
     assert {s.section for s in settings().values()} <= set(EVAL_OVERRIDABLE)
+
+
+def test_each_fault_names_a_classical_fix_the_fixed_fits_know():
+    assert {f.fix for f in registered()} <= set(FIXES)
 
 
 class Again(Fault):
