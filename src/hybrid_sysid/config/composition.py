@@ -11,6 +11,7 @@ from hydra.errors import ConfigCompositionException, MissingConfigException, Ove
 from omegaconf.errors import OmegaConfBaseException
 
 from hybrid_sysid.core.checks import NO_VALUE, ConfigError, Shown
+from hybrid_sysid.core.overrides import parse_override
 
 
 def composition_error(exc: BaseException) -> ConfigError | None:
@@ -76,7 +77,7 @@ def _override_key(line: str) -> str:
     for marker in ("override '", "override "):
         if marker in line:
             rest = line.split(marker, 1)[1]
-            return rest.split("'", 1)[0].split("=", 1)[0].lstrip("+~").rstrip(".") or line
+            return parse_override(rest.split("'", 1)[0]).key.rstrip(".") or line
     return "the config"
 
 

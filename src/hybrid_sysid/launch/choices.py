@@ -9,6 +9,7 @@ from __future__ import annotations
 from omegaconf import DictConfig
 
 from hybrid_sysid.core.checks import bad
+from hybrid_sysid.core.overrides import parse_override
 
 SET_BY_ESTIMATOR = ("model", "objective", "baseline")
 UNREAD_BY_BASELINE = ("model", "objective")  # what a baseline run never builds (training/run.py)
@@ -16,17 +17,16 @@ UNREAD_BY_BASELINE = ("model", "objective")  # what a baseline run never builds 
 
 def group_of(key: str) -> str:
     """The config group an override's key chooses: ``+model@x`` chooses model, ``model.optim.lr`` none."""
-    return key.lstrip("+~").split("@")[0]
+    return parse_override(key).group
 
 
 def given_choices(config: DictConfig) -> dict[str, str]:
     """Group -> its value as chosen on the command line or swept by the sweep's parameters (a preset's too); a
     deletion (``~objective``) chooses nothing."""
     given = {}
-    for override in map(str, config.hydra.overrides.task):
-        key, _, value = override.partition("=")
-        if not key.startswith("~"):
-            given[group_of(key)] = value
+    for override in map(parse_override, config.hydra.overrides.task):
+        if not override.deletes:
+            given[override.group] = override.value or ""
     for key, value in (config.hydra.sweeper.get("params") or {}).items():
         given.setdefault(group_of(str(key)), str(value))
     return given

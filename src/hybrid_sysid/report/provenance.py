@@ -30,6 +30,7 @@ from pathlib import Path
 import pandas as pd
 
 from hybrid_sysid.config import CONF_DIR
+from hybrid_sysid.core.overrides import parse_override, parse_overrides
 from hybrid_sysid.report.collect import config_value
 from hybrid_sysid.runs.reading import read_yaml
 from hybrid_sysid.runs.rundir import DamagedFile, RunDir
@@ -66,7 +67,9 @@ def command_line(app: str, overrides, multirun: bool = False) -> str:
     """The shell command: app, -m for a multirun whose experiment preset does not start one by itself, then the
     overrides as given (quoted for a POSIX shell where needed)."""
     overrides = [str(o) for o in overrides]
-    presets = [o.split("=", 1)[1] for o in overrides if o.lstrip("+").startswith("experiment=")]
+    presets = [
+        o.value for o in parse_overrides(overrides) if o.key == "experiment" and o.value is not None and not o.deletes
+    ]
     flag = multirun and not (presets and _preset_is_multirun(presets[-1]))
     return shlex.join([app, *(["-m"] if flag else []), *overrides])
 
@@ -77,7 +80,7 @@ def sweep_command(sweep_dir: Path) -> str | None:
     task = config_value(hydra, "overrides.task")
     if not isinstance(task, list):
         return None
-    extra = [o for o in config_value(hydra, "overrides.hydra") or [] if str(o).split("=", 1)[0] not in LOCATION_KEYS]
+    extra = [o for o in config_value(hydra, "overrides.hydra") or [] if parse_override(o).key not in LOCATION_KEYS]
     return command_line(_app(config_value(hydra, "job.config_name")), [*task, *extra], multirun=True)
 
 

@@ -11,6 +11,7 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -95,7 +96,7 @@ def swept_keys(sweep_dir: Path, params=None) -> set[str]:
 
 def override_key(override: str) -> str:
     """The key an override sets: ``+model.optim.lr=0.1`` -> ``model.optim.lr``, ``db@pkg=x`` -> ``db@pkg``."""
-    return override.split("=", 1)[0].lstrip("+~")
+    return parse_override(override).key
 
 
 def clip(name: str) -> str:
