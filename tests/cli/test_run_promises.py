@@ -49,12 +49,12 @@ def test_hydra_full_error_shows_the_traceback(tmp_path):
 def test_a_runs_figures_that_cannot_be_drawn_are_a_warning(tmp_path, monkeypatch, caplog):
     """Drawing a run's figures (after its record is written) fails: a warning naming the run, no exception."""
     import hybrid_sysid.report.run_figures as run_figures
-    from hybrid_sysid.cli.train import _draw_figures
+    from hybrid_sysid.launch.job import draw_run_figures
 
     def broken(run_dir):
         raise OSError(28, "No space left on device")
 
     monkeypatch.setattr(run_figures, "write_run_figures", broken)
-    _draw_figures(tmp_path)
+    draw_run_figures(tmp_path)
     assert f"run figures not drawn in {tmp_path}: OSError: [Errno 28] No space left on device" in caplog.text
     assert any(r.levelname == "WARNING" for r in caplog.records)

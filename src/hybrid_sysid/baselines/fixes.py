@@ -17,6 +17,7 @@ import numpy as np
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import fir_valid
 from hybrid_sysid.physics.seat_fit import fit_seat
+from hybrid_sysid.physics.sensors import delay_taps, fractional_delay  # the fault's own interpolator
 
 
 def lstsq_columns(columns: list[np.ndarray], y: np.ndarray, fir: np.ndarray | None) -> np.ndarray:
@@ -67,8 +68,6 @@ def fit_skew(seat, body, dt: float, measurement: str, fir: np.ndarray, skew_max:
     The body window is moved back by each offset (physics.sensors.fractional_delay) and re-integrated from the
     window's start; the delay's inexact edge samples only shift the integrals by a constant and a ramp at the
     start, which the band-pass removes, and lie in the part 'valid' drops at the end."""
-    from hybrid_sysid.physics.sensors import fractional_delay  # the fault's own interpolator
-
     seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
     n = len(seat)
     offsets = np.linspace(-skew_max, skew_max, grid) if skew_max > 0 else np.zeros(1)
@@ -99,8 +98,6 @@ def delayed_copies(x: np.ndarray, delays: np.ndarray, half_width: int = 32):
     Every row shares the delay, so the taps are one filter: x's spectrum is taken once and each copy is one
     product and one inverse FFT, where fractional_delay sums 2 half_width + 1 shifted arrays per call. With the
     seat filtered once, it makes the skew search faster (benchmarks/README.md, "Summary")."""
-    from hybrid_sysid.physics.sensors import delay_taps
-
     whole, taps = delay_taps(delays, half_width)
     pad = half_width + int(np.abs(whole).max(initial=0))
     padded = np.pad(x, ((0, 0), (pad, pad)), mode="edge")

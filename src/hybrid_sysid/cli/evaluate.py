@@ -6,7 +6,7 @@ evaluated on another car, road class, noise level or measurement. Model, objecti
 overriding them is a one-line error (exit 2). Works under ``-m``: every job writes its own record, naming the
 source run, and the sweep summary reads them. The job directory's .hydra/config.yaml is replaced by the config
 that was evaluated, so the directory describes itself. Signals, interruption and failure records: as
-hybrid-sysid (hybrid_sysid.cli.job, hybrid_sysid.cli.process); the preflight checks the evaluated config and
+hybrid-sysid (hybrid_sysid.launch.job, hybrid_sysid.launch.process); the preflight checks the evaluated config and
 refuses a directory that holds a completed run of other overrides before Hydra writes into it.
 """
 
@@ -24,13 +24,14 @@ from omegaconf import DictConfig, OmegaConf
 from omegaconf.errors import OmegaConfBaseException
 
 from hybrid_sysid import config
-from hybrid_sysid.cli.job import Preflight, checks_complete, draws_figures, run_job
-from hybrid_sysid.cli.process import console_main, fail
 from hybrid_sysid.config import Config, flatten, validate
 from hybrid_sysid.config.versions import upgraded
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.options import EVAL_OVERRIDABLE
-from hybrid_sysid.core.overrides import parse_override
+from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
+from hybrid_sysid.launch.process import console_main, fail
+from hybrid_sysid.runs import locks
+from hybrid_sysid.runs.layout import enclosing_run
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -45,7 +46,7 @@ MADE: list[Path] = []
 
 def override_keys(overrides) -> list[str]:
     """The dotted key of each command-line override ("car.c3=700" -> "car.c3", "+data.x=1" -> "data.x")."""
-    return [parse_override(o).key for o in overrides]
+    return [o.split("=", 1)[0].lstrip("+~") for o in overrides]
 
 
 def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictConfig:
@@ -114,8 +115,6 @@ def outside_other_runs(out_dir, key: str) -> None:
     """The evaluation's directory lies inside no other run or sweep directory (its own, evaluated again, is its
     own): an evaluation in a run's checkpoints/ once wrote there, and that run's report then listed two runs.
     predict's output= and the report's results= refuse such paths alike (runs.layout.enclosing_run)."""
-    from hybrid_sysid.runs.layout import enclosing_run
-
     holder = enclosing_run(Path(str(out_dir)).resolve().parent)
     if holder is not None:
         where = "a path outside run and sweep directories, whose files are their record"
@@ -123,7 +122,7 @@ def outside_other_runs(out_dir, key: str) -> None:
 
 
 class EvalPreflight(Preflight):
-    """Preflight (hybrid_sysid.cli.job) that also builds and checks the config to evaluate."""
+    """Preflight (hybrid_sysid.launch.job) that also builds and checks the config to evaluate."""
 
     def on_run_start(self, config: DictConfig, **kwargs) -> None:
         with checks_complete():  # a refusal here ends the command in one line, before any directory
@@ -143,7 +142,7 @@ class EvalPreflight(Preflight):
             raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
         RunDir(str(cfg.run)).ended_record("run")  # a run still training, or a damaged record: before any read
         evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
-        from hybrid_sysid.training.build import check_sizes, check_weights  # here: a sweep's parent loads no torch
+        from hybrid_sysid.training.build import check_sizes, check_weights  # deferred
 
         check_sizes(evaluated, Path(str(cfg.run)), "run")  # before validate builds the network for real
         validate_saved(evaluated, Path(str(cfg.run)))
@@ -152,7 +151,7 @@ class EvalPreflight(Preflight):
 
 def evaluate(composed: DictConfig, out_dir: Path, overrides: list[str], checked: bool) -> dict:
     """The evaluation of one job; imported here, so a sweep's parent process loads no torch."""
-    from hybrid_sysid.training.run import evaluate_checkpoint
+    from hybrid_sysid.training.run import evaluate_checkpoint  # deferred
 
     source = Path(composed.run)
     cfg = evaluation_config(source, composed, overrides)
@@ -195,23 +194,12 @@ def hydra_main(composed: DictConfig) -> dict:
         again="run the same command again to evaluate it",
     )
     if record.get("status") == "completed" and draws_figures(composed.get("run_figures", "auto"), multirun):
-        draw_figures(out_dir)
+        draw_run_figures(out_dir)
     return record
 
 
-def draw_figures(out_dir: Path) -> None:
-    """The evaluation's figures, from its files; it is complete without them, so a failure here is a warning (as
-    a run's, hybrid_sysid.cli.train)."""
-    try:
-        from hybrid_sysid.report.run_figures import write_run_figures
-
-        write_run_figures(out_dir)
-    except Exception as exc:  # noqa: BLE001 - e.g. a full disk: the record already holds every number
-        log.warning("run figures not drawn in %s: %s: %s", out_dir, type(exc).__name__, exc)
-
-
 def main() -> None:
-    """Console script ``hybrid-sysid-eval`` (exit statuses: hybrid_sysid.cli.process)."""
+    """Console script ``hybrid-sysid-eval`` (exit statuses: hybrid_sysid.launch.process)."""
     try:
         console_main(hydra_main, sys.argv[1:])
     finally:
@@ -222,8 +210,6 @@ def discard_unrecorded() -> None:
     """Remove the directory this command made if it holds no record when the command ends: Hydra could not write
     its .hydra/ there (a full disk, before the job), or the record itself did not fit. A record, failed or
     interrupted, stays: it says what happened. Only while this process still holds the directory's lock."""
-    from hybrid_sysid.runs import locks
-
     while MADE:
         out_dir = MADE.pop()
         if locks.holds(out_dir) and not RunDir(out_dir).record_file.exists():

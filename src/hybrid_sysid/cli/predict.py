@@ -19,11 +19,12 @@ import warnings
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+import hybrid_sysid
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
-from hybrid_sysid.cli.console import tolerant_streams
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.inference.inputs import EstimateWarning, InputError
+from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.runs import layout
 
 if TYPE_CHECKING:
@@ -114,15 +115,13 @@ def write_new(path: Path, write) -> None:
 
 
 def read_input(path: Path, dt: float | None):
-    from hybrid_sysid.data.readers import read_input as read
+    from hybrid_sysid.data.readers import read_input as read  # deferred
 
     return read(path, dt)
 
 
 def load_estimator(run_dir: str):
-    from hybrid_sysid.inference.loading import load_estimator as load
-
-    return load(run_dir)
+    return hybrid_sysid.load_estimator(run_dir)  # the package's own deferred import
 
 
 def run(args: dict) -> pd.DataFrame:

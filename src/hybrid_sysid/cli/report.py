@@ -25,9 +25,11 @@ from hybrid_sysid.report.collect import find_runs, load_runs
 from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.paper import write_reproduction
 from hybrid_sysid.report.results_page import write_results
+from hybrid_sysid.report.run_figures import write_run_figures
 from hybrid_sysid.report.summary import write_summary
 from hybrid_sysid.report.tables import METRICS
-from hybrid_sysid.runs.layout import PREDICTIONS, RECORD
+from hybrid_sysid.runs.layout import PREDICTIONS, RECORD, WRITER_LOCK, enclosing_run
+from hybrid_sysid.runs.locks import hold_for_writing
 
 PROG = "hybrid-sysid-report"
 HELP = f"""{PROG}: rebuild the comparison table (summary.md, summary.csv) and figures of sweeps or runs from their
@@ -225,17 +227,12 @@ def _writer_of(out: Path, key: str):
     """The one-writer lock of ``out`` when a run or sweep of hybrid-sysid writes there (its lock file is there),
     taken for the report's own writing: a sweep still running is refused (a table of its first jobs would race
     with its own summary, or replace it)."""
-    from hybrid_sysid.runs.layout import WRITER_LOCK
-    from hybrid_sysid.runs.locks import hold_for_writing
-
     return hold_for_writing(out, key) if (Path(out) / WRITER_LOCK).is_file() else None
 
 
 def _inside_a_run(args) -> str | None:
     """results= never lies inside a run or sweep directory, whose files are their record (a results page there
     once replaced a run's metrics.json); out= neither, but for a PATH itself, where the summary goes by default."""
-    from hybrid_sysid.runs.layout import enclosing_run
-
     own = {p.resolve() for p in args.paths}
     for key in ("results", "out"):
         value = getattr(args, key)
@@ -252,8 +249,6 @@ def draw_run_figures(paths, exclude=()) -> int:
     """Each completed run's figures under ``paths`` (but runs matching ``exclude``); the number drawn. A run
     without predictions (e.g. a chain's parent) has nothing to draw and is skipped, with a progress line every
     ten runs on stderr."""
-    from hybrid_sysid.report.run_figures import write_run_figures
-
     root, df = load_runs(paths, exclude)
     runs = df[df.status == "completed"].drop_duplicates("run").run
     drawn = 0

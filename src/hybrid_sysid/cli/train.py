@@ -10,7 +10,6 @@ objective, val/rel_dev otherwise; trainer.monitor).
 from __future__ import annotations
 
 import gc
-import logging
 import sys
 from pathlib import Path
 from typing import Any
@@ -23,11 +22,12 @@ from omegaconf import DictConfig
 from hybrid_sysid import config
 from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import Shown, bad
-from hybrid_sysid.launch.job import Preflight, checks_complete, draws_figures, run_job
+from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
 from hybrid_sysid.launch.process import console_main
+from hybrid_sysid.runs.layout import SWEEP_CONFIG, enclosing_run
+from hybrid_sysid.runs.resume import check_resume
 from hybrid_sysid.runs.rundir import RunDir
-
-log = logging.getLogger("hybrid_sysid")
+from hybrid_sysid.training.tracking import job_naming, log_run_figures
 
 
 class TrainPreflight(Preflight):
@@ -48,12 +48,10 @@ class TrainPreflight(Preflight):
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
         validate(cfg)
         if cfg.get("init_from"):  # its weights must fit and load, before a directory exists
-            from hybrid_sysid.training.build import check_weights
+            from hybrid_sysid.training.build import check_weights  # deferred
 
             check_weights(cfg, Path(str(cfg.init_from)), "init_from")
         if cfg.get("resume"):
-            from hybrid_sysid.runs.resume import check_resume
-
             check_resume(RunDir(str(cfg.resume)), cfg, overrides)
 
 
@@ -62,8 +60,6 @@ def outside_other_runs(out_dir: Path, key: str, resume=None) -> None:
     trained there, and that run's report then listed two runs (eval refuses the same: cli.evaluate). A sweep's
     job lives in its sweep's directory, so ``resume=`` of that job (its parent holds multirun.yaml), or that job's
     existing directory as a single run's, is allowed."""
-    from hybrid_sysid.runs.layout import SWEEP_CONFIG, enclosing_run
-
     here = out_dir.resolve()
     holder = enclosing_run(here.parent)
     if holder is None:
@@ -82,17 +78,16 @@ def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: boo
     jobs, loads no torch. ``hc``: the job's Hydra config, which names it in an experiment tracker (a sweep's jobs
     are runs of one experiment, <preset>:<sweep>, named by their differing overrides)."""
     if cfg.task == "transfer":
-        from hybrid_sysid.experiments.transfer import run_chain as chain
+        from hybrid_sysid.experiments.transfer import run_chain as chain  # deferred
     elif cfg.task == "tuned":
-        from hybrid_sysid.experiments.tuned import run_tuned as chain
+        from hybrid_sysid.experiments.tuned import run_tuned as chain  # deferred
     else:
-        from hybrid_sysid.training.run import train
+        from hybrid_sysid.training.run import train  # deferred
     freeze_imports()
     if cfg.task in ("transfer", "tuned"):  # a chain of runs in sub-directories, each with its own record
         result = chain(cfg, run_dir, overrides)
         RunDir(run_dir).drop_stale_record()  # an earlier interruption's record: every run it named is done now
         return result
-    from hybrid_sysid.training.tracking import job_naming
 
     naming = job_naming(hc) if hc is not None and cfg.get("logger") else None  # names only a tracker needs
     # a single run's config was validated by the preflight; a sweep's job has had no preflight
@@ -126,21 +121,9 @@ def hydra_main(cfg: DictConfig) -> Any:
     )
     draw = draws_figures(cfg.get("run_figures", "auto"), multirun)
     if draw and cfg.task == "train" and record.get("status") == "completed" and record.get("rank", 0) == 0:
-        from hybrid_sysid.training.tracking import log_run_figures
-
-        _draw_figures(run_dir)  # with DDP, rank 0 alone has the record
+        draw_run_figures(run_dir)  # with DDP, rank 0 alone has the record
         log_run_figures(run_dir)  # into the job's MLflow run, now that they exist
     return record
-
-
-def _draw_figures(run_dir: Path) -> None:
-    """The run's figures, from its files; the run is complete without them, so a failure here is a warning."""
-    try:
-        from hybrid_sysid.report.run_figures import write_run_figures
-
-        write_run_figures(run_dir)
-    except Exception as exc:  # noqa: BLE001 - e.g. a full disk: the record already holds every number
-        log.warning("run figures not drawn in %s: %s: %s", run_dir, type(exc).__name__, exc)
 
 
 def main() -> None:

@@ -6,6 +6,7 @@ allowed: what is allowed``, so these are too."""
 from __future__ import annotations
 
 import re
+import sys
 
 from hydra.errors import ConfigCompositionException, MissingConfigException, OverrideParseException
 from omegaconf.errors import OmegaConfBaseException
@@ -53,8 +54,6 @@ def composition_error(exc: BaseException) -> ConfigError | None:
 
 def _null_group() -> str:
     """The group the command line set to null (``baseline=null``), from the arguments Hydra read."""
-    import sys
-
     for arg in sys.argv[1:]:
         key, _, value = arg.partition("=")
         if value.strip().lower() in ("null", "none", "~") and "." not in key:

@@ -7,6 +7,7 @@ import importlib.util
 
 from omegaconf import DictConfig
 
+from hybrid_sysid.config.stores import check_store
 from hybrid_sysid.config.targets import build, check_target
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.install import install_command
@@ -32,8 +33,6 @@ def validate_loggers(cfg: DictConfig) -> None:
                 allowed=f"it needs the {needs[0]} package, not installed: {install_command('loggers')}",
             )
         if target.endswith(".MLFlowLogger"):
-            from hybrid_sysid.config.stores import check_store
-
             check_store(str(lg.get("tracking_uri") or ""), f"logger.{name}.tracking_uri")
 
 

@@ -13,7 +13,7 @@ from hybrid_sysid.core.memory import (
     memory_limits,
     tightest_memory,
 )
-from hybrid_sysid.data.dataset import CHANNELS
+from hybrid_sysid.data.spec import CHANNELS
 
 __all__ = [
     "ADDRESS_SPACE",

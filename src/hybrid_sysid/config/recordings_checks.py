@@ -78,7 +78,7 @@ def check_recordings(cfg: DictConfig, spec: DatasetSpec, training: bool = True, 
             f"at least {need} steps ({why})",
         )
     if d.get("labels") is not None:
-        from hybrid_sysid.data.recordings_labels import read_labels
+        from hybrid_sysid.data.recordings_labels import read_labels  # deferred
 
         read_labels(d.labels, [r.name for r in idx.recordings])
     try:

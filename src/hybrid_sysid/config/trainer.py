@@ -128,7 +128,7 @@ def _build(arguments: dict, key: str, value=None) -> None:
 
 
 def _trainer(arguments: dict):
-    import lightning as L
+    import lightning as L  # deferred
 
     with _quiet_lightning():
         return L.Trainer(

@@ -235,7 +235,7 @@ def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
     taps, outside = (None if f is None else len(f) for f in (objective.fir, objective.outside_fir))
     with _placed():
         WindowSettings.from_config(cfg).validate(spec, bounds, taps, outside)
-    import torch
+    import torch  # deferred
 
     net = _built(cfg, "model.net")
     try:

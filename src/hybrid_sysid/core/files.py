@@ -10,6 +10,8 @@ import tempfile
 from pathlib import Path
 from typing import Callable
 
+import yaml
+
 # errors= of a text file a command writes: under an ASCII locale a path outside ASCII comes from the command line
 # and the file system as lone surrogates; they are written back as the path's own bytes (UTF-8 where it was)
 ESCAPED = "surrogateescape"
@@ -52,8 +54,6 @@ def write_json_atomic(path: Path, payload: dict) -> None:
 
 def write_yaml_atomic(path: Path, payload) -> None:
     """A YAML file (its folder made if missing), as Hydra writes .hydra/config.yaml."""
-    import yaml
-
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     write_atomic(path, lambda tmp: tmp.write_text(yaml.safe_dump(payload, sort_keys=False)))
@@ -105,8 +105,6 @@ def read_yaml_text(path: str | os.PathLike, limit: int = MAX_BYTES) -> str:
     """A received YAML file's text (read_text's limits) once its node graph, composed without building any value,
     is at most MAX_DEPTH deep, MAX_YAML_NODES large and MAX_YAML_BYTES of text with every alias expanded (a
     "billion laughs" of chained aliases is a few lines that expand beyond any memory)."""
-    import yaml
-
     text = read_text(path, limit)
     # libyaml's composer, where PyYAML has it, builds the same node graph far faster (benchmarks/README.md): a
     # report reads a run's config several times
@@ -126,8 +124,6 @@ def read_yaml_text(path: str | os.PathLike, limit: int = MAX_BYTES) -> str:
 
 def read_yaml(path: str | os.PathLike, limit: int = MAX_BYTES):
     """A received YAML file as plain data (read_yaml_text's limits)."""
-    import yaml
-
     return yaml.safe_load(read_yaml_text(path, limit))
 
 
@@ -151,7 +147,6 @@ def _check_depth(data, depth: int) -> None:
 def _check_yaml_size(root) -> None:
     """Nodes and scalar bytes counted as construction would build them (an alias shares its node, counted at
     every use), in post-order without recursion; a node within itself (a recursive alias) is refused."""
-    import yaml
 
     def kids(node):
         if isinstance(node, yaml.MappingNode):

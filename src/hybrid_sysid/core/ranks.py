@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import os
 
+from hybrid_sysid.core.checks import bad, check_int
+
 # every variable that names a rank: the global rank is 0 only if each one set is 0 (torchrun sets RANK, GROUP_RANK
 # and LOCAL_RANK; srun SLURM_PROCID; Lightning's environment NODE_RANK and LOCAL_RANK, its global rank being
 # NODE_RANK x devices + LOCAL_RANK)
@@ -51,8 +53,6 @@ def check_world(num_nodes, devices) -> None:
     """trainer.num_nodes x trainer.devices is the world size the launcher started, and a node's rank is below
     trainer.num_nodes; else ConfigError naming trainer.num_nodes (the processes would wait for each other in the
     rendezvous until its timeout). Devices not given as a count (auto, a list) are Lightning's to check."""
-    from hybrid_sysid.core.checks import bad, check_int
-
     nodes = check_int("trainer.num_nodes", num_nodes, 1)
     node = os.environ.get("NODE_RANK", os.environ.get("GROUP_RANK", "")).strip()
     if node.isdigit() and int(node) >= nodes:

@@ -16,8 +16,8 @@ import pandas as pd
 
 from hybrid_sysid.core.checks import InputError, Shown
 from hybrid_sysid.core.memory import tightest_memory
+from hybrid_sysid.data.spec import DT_RTOL
 
-DT_RTOL = 1e-9  # a recording's dt counts as another's (a run's data.dt, a file's other recordings) within this
 CHANNELS = ("seat_acc", "body_acc")
 COLUMNS = (*CHANNELS, "time", "recording")  # the CSV columns read; any other is ignored
 # A time column's steps may each differ from their mean by this fraction: time stamps rounded to a few

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
+from hybrid_sysid.data.spec import DT_RTOL
 from hybrid_sysid.data.splits import SPLITS, Split, split_by_road
 
 KEY = "data.path"
@@ -92,7 +93,7 @@ def read_file(path: Path):
     """(names, seats, bodies, dt) of one file: hybrid-sysid-predict's reader, its errors under data.path. A name
     is the file's ``recording`` column (as written); without one, the file's stem, with ``:i`` for row i of an
     .npz file's 2-D arrays."""
-    from hybrid_sysid.data.readers import read_input  # pandas: loaded by what reads files alone
+    from hybrid_sysid.data.readers import read_input  # deferred
 
     try:
         rec = read_input(path)
@@ -124,8 +125,6 @@ def check_finite(path: Path, name: str, seat: np.ndarray, body: np.ndarray) -> N
 def scan(root: Path) -> RecordingsIndex:
     """Every file of data.path read once, in name order, for its recordings' names and lengths, its step and its
     fingerprint; one ConfigError at the first bad file. Names are unique across data.path."""
-    from hybrid_sysid.data.readers import DT_RTOL  # files share one sample rate, as a file's recordings do
-
     files = recording_files(root)
     recordings, where, prints, dt, first = [], {}, [], None, None
     for path in files:
@@ -133,7 +132,7 @@ def scan(root: Path) -> RecordingsIndex:
         relative = path.name
         if dt is None:
             dt, first = step, relative
-        elif abs(step - dt) > DT_RTOL * dt:
+        elif abs(step - dt) > DT_RTOL * dt:  # files share one sample rate, as a file's recordings do
             bad(
                 f"{KEY} = {path}: its time step",
                 Shown(f"{step:.9g} s"),

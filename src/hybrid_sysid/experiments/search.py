@@ -15,7 +15,11 @@ import inspect
 from dataclasses import dataclass
 
 import numpy as np
+import optuna
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
 from omegaconf import DictConfig, OmegaConf
+from optuna.distributions import CategoricalDistribution, FloatDistribution
 
 from hybrid_sysid.core.checks import bad, check_choice, check_int
 from hybrid_sysid.core.options import DIRECTIONS
@@ -38,8 +42,6 @@ SAMPLER_KEYS = (
 
 
 def _parse(key: str, spec, name: str):
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
     try:
         return OverridesParser.create().parse_override(f"{key}={spec}").value()
     except Exception as exc:  # noqa: BLE001 - Hydra's parser raises its own classes
@@ -48,9 +50,6 @@ def _parse(key: str, spec, name: str):
 
 def search_space(params, where: str = "hydra.sweeper") -> dict:
     """Optuna distributions for ``params`` ({key: Hydra sweep syntax}); ConfigError for another syntax."""
-    from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
-    from optuna.distributions import CategoricalDistribution, FloatDistribution
-
     space = {}
     for key, spec in (params or {}).items():
         name = f"{where}.params.{key}"
@@ -69,8 +68,6 @@ def check_search(cfg: DictConfig, params, n_trials, where: str = "hydra.sweeper"
     interval(a, b) with a < b (and a > 0 when tagged log), and every value it can take of the type of the
     config's own value at that key (a text choice for a float key would only fail inside a trial, and stop a
     study). Returns the space (``search_space``); ConfigError naming ``where``'s key otherwise."""
-    from hydra.core.override_parser.types import ChoiceSweep, IntervalSweep
-
     check_int(f"{where}.n_trials", n_trials, 1)
     for key, spec in (params or {}).items():
         name = f"{where}.params.{key}"
@@ -117,8 +114,6 @@ def check_sampler(settings, where: str = "hydra.sweeper.sampler") -> dict:
 
 def sampler_for(settings: dict, number: int):
     """The TPE sampler that asks trial ``number``: seeded from (seed, number) when the search is seeded."""
-    import optuna
-
     settings = dict(settings)
     if settings.get("seed") is not None:
         settings["seed"] = int(np.random.SeedSequence([int(settings["seed"]), number]).generate_state(1)[0])
@@ -144,8 +139,6 @@ class StudySettings:
 def study_settings(cfg: DictConfig, settings, arguments, where: str = "hydra.sweeper") -> StudySettings:
     """StudySettings from the sweeper's settings (``hydra.sweeper``) and the command line's overrides; a
     ConfigError naming the key for a bad value, before any trial."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
     params, fixed = dict(settings.get("params") or {}), []
     for override in OverridesParser.create().parse_overrides(list(arguments)):
         if override.is_sweep_override():  # a sweep on the command line is a dimension of the space

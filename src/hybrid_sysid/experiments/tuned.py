@@ -23,6 +23,7 @@ from __future__ import annotations
 import logging
 from pathlib import Path
 
+import optuna
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import validate
@@ -81,8 +82,6 @@ def run_sub(sub: DictConfig, run_dir: Path, overrides: list[str]) -> dict:
 
 def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     """The search, then the default and best values on each seed (module docstring). Returns a short record."""
-    import optuna
-
     job_dir, t = Path(job_dir), cfg.tuned
     sweeper = preset("hparams_search", t.search, "tuned.search").hydra.sweeper
     if t.n_trials < 1:

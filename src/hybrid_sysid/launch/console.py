@@ -80,7 +80,7 @@ def quiet_libraries() -> None:
         warnings.filterwarnings("ignore", message=SRUN_ADVERT)
     if not logging.getLogger().handlers:
         return
-    import lightning  # noqa: F401
+    import lightning  # noqa: F401 - deferred
 
     for name in LIGHTNING:
         logger = logging.getLogger(name)

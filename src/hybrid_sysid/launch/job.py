@@ -41,10 +41,11 @@ from hybrid_sysid.launch.process import (
     missing_extra_of_sweep,
     stop_sweep,
 )
+from hybrid_sysid.launch.slurm import check_request
 from hybrid_sysid.launch.state import PROCESS
 from hybrid_sysid.runs import locks
 from hybrid_sysid.runs.rundir import CompletedRecordError, RunDir
-from hybrid_sysid.runs.sweepdir import SweepDir
+from hybrid_sysid.runs.sweepdir import SweepDir, first_difference
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -157,6 +158,17 @@ def draws_figures(setting, multirun: bool) -> bool:
     return setting if isinstance(setting, bool) else not multirun
 
 
+def draw_run_figures(run_dir: Path) -> None:
+    """A run's or an evaluation's figures, from its files; it is complete without them, so a failure here is a
+    warning."""
+    try:
+        from hybrid_sysid.report.run_figures import write_run_figures  # deferred
+
+        write_run_figures(run_dir)
+    except Exception as exc:  # noqa: BLE001 - e.g. a full disk: the record already holds every number
+        log.warning("run figures not drawn in %s: %s: %s", run_dir, type(exc).__name__, exc)
+
+
 def task_config(cfg: DictConfig) -> DictConfig:
     """The job's config without Hydra's own section."""
     task = copy.deepcopy(cfg)
@@ -208,13 +220,11 @@ class Preflight(Callback):
         if missing:
             fail(missing)
         if is_search(config):  # a search: its space and settings before any trial
-            from hybrid_sysid.experiments.search import study_settings
+            from hybrid_sysid.experiments.search import study_settings  # deferred
 
             study_settings(task_config(config), config.hydra.sweeper, config.hydra.overrides.task)
         check_joblib(config.hydra.launcher)
         if str(config.hydra.launcher.get("_target_", "")) == SLURM_LAUNCHER:  # the request against the partition
-            from hybrid_sysid.launch.slurm import check_request
-
             check_request(config.hydra.launcher)
         make_dir(sweep_dir, "hydra.sweep.dir")
         locks.hold(sweep_dir, "hydra.sweep.dir")  # one sweep per directory at a time
@@ -240,8 +250,6 @@ def same_config(run: RunDir, config: DictConfig) -> None:
     """A completed run of the same overrides is skipped (Hydra saves nothing over it: config/resolvers.py's
     hydra_subdir); made with another config (a file of the user's --config-dir changed), it is refused, since its
     record does not hold what this command asks. A saved config that cannot be read tells nothing: skipped."""
-    from hybrid_sysid.runs.sweepdir import first_difference
-
     saved = run.saved_values()
     if not saved:
         return

@@ -20,9 +20,12 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import Any, Callable
 
+from hydra.core.override_parser.overrides_parser import OverridesParser
+
+from hybrid_sysid.config.composition import composition_error
+from hybrid_sysid.config.loggers import validate_callbacks, validate_loggers
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.install import install_command
-from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.launch.overrides import quoted_overrides
 from hybrid_sysid.launch.state import PROCESS
@@ -53,7 +56,7 @@ def missing_extra(args) -> str | None:
     for arg in args:
         for prefix, (modules, extra) in EXTRAS.items():
             modules = (modules,) if isinstance(modules, str) else modules
-            if parse_override(arg).unprefixed.startswith(prefix) and not any(installed(m) for m in modules):
+            if arg.lstrip("+~").startswith(prefix) and not any(installed(m) for m in modules):
                 name = modules[0].split(".")[-1].replace("_", "-")
                 return f"{arg} needs {name}, which is not installed: {install_command(extra)}"
     return None
@@ -64,17 +67,13 @@ def missing_extra_of_sweep(overrides, task) -> str | None:
     (``logger=csv,mlflow`` is ``logger=csv`` and ``logger=mlflow``), and the packages of the loggers and callbacks
     its config ``task`` (without Hydra's section) holds where those groups are not swept: so a sweep missing one
     is one line before any job starts, not every job failing."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
-    from hybrid_sysid.config.loggers import validate_callbacks, validate_loggers
-
     args, swept = [], set()
     for override in OverridesParser.create().parse_overrides(list(overrides)):
         key = override.get_key_element()
         if not override.is_sweep_override():
             args.append(override.input_line)
             continue
-        swept.add(parse_override(key).group)
+        swept.add(key.lstrip("+~").split("@")[0])
         try:
             args += [f"{key}={value}" for value in override.sweep_string_iterator()]
         except Exception:  # noqa: BLE001 - a range or interval of numbers: no choice of a package there
@@ -194,7 +193,7 @@ def _summarise_interrupted_sweep() -> None:
     if sweep_dir is None or not sweep_dir.is_dir() or PROCESS.summarised:
         return
     try:
-        from hybrid_sysid.report.summary import write_summary
+        from hybrid_sysid.report.summary import write_summary  # deferred
 
         write_summary(sweep_dir)
         print(f"sweep interrupted; summary of the jobs that ended in {sweep_dir}", file=sys.stderr)
@@ -209,8 +208,6 @@ def composition_in_one_line():
     its app's exceptions instead of printing them where HYDRA_FULL_ERROR=1 (its documented switch), so it is set
     here and the exceptions reach this block; any other exception is printed with its traceback, exit 1, as Hydra
     would. A user's own HYDRA_FULL_ERROR=1 keeps every exception as it is."""
-    from hybrid_sysid.config.composition import composition_error
-
     users = os.environ.get("HYDRA_FULL_ERROR")
     if users != "1":
         os.environ.update({"HYDRA_FULL_ERROR": "1", SET_HERE: "1"})

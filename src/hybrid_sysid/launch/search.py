@@ -27,6 +27,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+import optuna
 from omegaconf import DictConfig
 
 from hybrid_sysid.core.checks import ConfigError
@@ -34,6 +35,7 @@ from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.search import StudySettings, sampler_for, study_settings
 from hybrid_sysid.launch.job import task_config
 from hybrid_sysid.launch.process import fail, sweep_stopped
+from hybrid_sysid.launch.study import open_owned
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -43,8 +45,6 @@ RESULTS = "optimization_results.yaml"
 
 def run_study(config: DictConfig, launcher, settings: dict, arguments: list[str]) -> list:
     """The search (module docstring): returns the jobs' returns, as Hydra's sweepers do."""
-    import optuna
-
     sweep_dir = Path(str(config.hydra.sweep.dir))
     try:
         s = study_settings(task_config(config), settings, arguments)
@@ -77,8 +77,6 @@ def run_study(config: DictConfig, launcher, settings: dict, arguments: list[str]
 def open_study(s: StudySettings, sweep_dir: Path):
     """The search's study, made or resumed (hybrid_sysid.launch.study: several searches starting at once on one
     storage; one search per study)."""
-    from hybrid_sysid.launch.study import open_owned
-
     return open_owned(s, s.storage or f"sqlite:///{sweep_dir / STUDY_FILE}", sweep_dir if s.storage else None, _own)
 
 
@@ -112,8 +110,6 @@ def _own(study, sweep_dir: Path | None, s: StudySettings) -> None:
 def _next_batch(study, s: StudySettings) -> list[tuple[int, dict]]:
     """The trials to launch next, as (number, values): the batch a running trial belongs to (asked full, its
     running trials included), else the next n_jobs trials; [] once n_trials have ended."""
-    import optuna
-
     trials = study.get_trials(deepcopy=False)
     running = [t for t in trials if t.state == optuna.trial.TrialState.RUNNING]
     end = (running[-1].number // s.n_jobs + 1) * s.n_jobs if running else len(trials) + s.n_jobs
@@ -141,8 +137,6 @@ def _contiguous(batch: list) -> list[list]:
 def _tell(study, number: int, ret) -> None:
     """The job's value into its trial: its record's best_score; a failed trial without one; a trial whose job
     was interrupted stays running, for the re-run."""
-    import optuna
-
     try:
         record: Any = ret.return_value  # raises the job's exception, had one escaped it
     except Exception as exc:  # noqa: BLE001 - a job's failure is a failed trial
@@ -161,8 +155,6 @@ def _tell(study, number: int, ret) -> None:
 
 def _write_results(study, sweep_dir: Path, s: StudySettings) -> None:
     """optimization_results.yaml (the best values and figure, the trial counts) and trials.csv."""
-    import optuna
-
     trials = study.get_trials(deepcopy=False)
     complete = [t for t in trials if t.state == optuna.trial.TrialState.COMPLETE]
     best = study.best_trial if complete else None

@@ -78,7 +78,7 @@ class SlurmLauncher(SubmititSlurmLauncher):
 
     def launch(self, job_overrides: Sequence[Sequence[str]], initial_job_idx: int) -> Sequence[JobReturn]:
         """As hydra-submitit-launcher's launch, with the sweep's own wait for the results (``_wait``)."""
-        import submitit
+        import submitit  # deferred
 
         params = dict(self.params)
         init = {"folder": params.pop("submitit_folder")}

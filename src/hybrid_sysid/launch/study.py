@@ -19,6 +19,11 @@ import time
 from pathlib import Path
 from typing import Callable
 
+import optuna
+from filelock import FileLock
+from sqlalchemy.engine import make_url
+from sqlalchemy.exc import SQLAlchemyError
+
 from hybrid_sysid.launch.process import fail
 
 ATTEMPTS = 5  # tries at making a server's tables, while another process may be making them
@@ -28,8 +33,6 @@ CLAIM_WAIT = 10.0  # seconds a search waits for the maker of a study it found to
 def open_owned(s, url: str, owner_dir: Path | None, own: Callable) -> object:
     """The study ``s.name`` in the storage at ``url``, made or loaded, then taken or refused by ``own(study,
     owner_dir, s)`` (which ends the command in one line when the study is another search's)."""
-    import optuna
-
     lock = _sqlite_lock(url)
     with lock:
         storage = _storage(url)
@@ -51,7 +54,6 @@ def _sqlite_lock(url: str):
     path = Path(url[len("sqlite:///") :])
     if not path.name or path.name == ":memory:" or not path.parent.is_dir():
         return contextlib.nullcontext()
-    from filelock import FileLock
 
     return FileLock(str(path) + ".lock")
 
@@ -59,9 +61,6 @@ def _sqlite_lock(url: str):
 def _storage(url: str):
     """optuna's database storage at ``url``, its tables made if missing (tried again while another process makes
     them); one line naming hydra.sweeper.storage when it cannot be opened."""
-    import optuna
-    from sqlalchemy.exc import SQLAlchemyError
-
     error: Exception | None = None
     for attempt in range(ATTEMPTS):
         try:
@@ -85,8 +84,6 @@ def _wait_for_claim(study) -> None:
 def _shown(url: str) -> str:
     """The URL without its password."""
     try:
-        from sqlalchemy.engine import make_url
-
         return make_url(url).render_as_string(hide_password=True)
     except Exception:  # noqa: BLE001 - not a URL SQLAlchemy reads: shown up to its credentials
         return url.split("@")[-1]

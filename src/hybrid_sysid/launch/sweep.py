@@ -116,9 +116,9 @@ class SweepSummary(Callback):
             self._preload = None
             cancel.set()
             thread.join()
-        from hybrid_sysid.report.paper import write_reproduction
-        from hybrid_sysid.report.summary import reference_note, threads_warning, write_summary
-        from hybrid_sysid.report.terminal import to_console
+        from hybrid_sysid.report.paper import write_reproduction  # deferred
+        from hybrid_sysid.report.summary import reference_note, threads_warning, write_summary  # deferred
+        from hybrid_sysid.report.terminal import to_console  # deferred
 
         sweep_dir = Path(config.hydra.sweep.dir)
 

@@ -3,6 +3,8 @@ LightningModule around them, what each of them provides (base: the Network, Obje
 the relative deviation (eq. 24, metrics). base, metrics and optim load no torch; the classes below load it when
 first named."""
 
+import importlib
+
 from hybrid_sysid.model.base import Baseline, Network, Objective, SplitPredictor
 
 _LAZY = {
@@ -22,7 +24,5 @@ __all__ = ["Baseline", "Network", "Objective", "SplitPredictor", *_LAZY]
 def __getattr__(name):
     # the report and the config's checks import model.metrics and model.base without torch
     if name in _LAZY:
-        import importlib
-
         return getattr(importlib.import_module(f"hybrid_sysid.model.{_LAZY[name]}"), name)
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import pandas as pd
 
+from hybrid_sysid.report.plotting import PERCENT, figure_legend, noise_axis, save_figure
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
 
@@ -20,10 +22,6 @@ def anchored_figure(table: pd.DataFrame, path: Path, k: int = 1) -> None:
     """Mean relative deviation in percent against the noise level, one line per estimator (the classical fits
     dashed), error bars the std over seeds, the Cramér-Rao bound dotted; values below FLOOR are drawn at it.
     ``table``: row levels estimator and optionally fault and K; columns (noise, parameter, statistic)."""
-    import matplotlib.pyplot as plt
-
-    from hybrid_sysid.report.plotting import PERCENT, figure_legend, noise_axis, save_figure
-
     if K_LEVEL in table.index.names:
         table = table.xs(k, level=K_LEVEL)
     faults = list(dict.fromkeys(table.index.get_level_values(FAULT))) if FAULT in table.index.names else [None]

@@ -13,6 +13,13 @@ K_LEVEL = "K"  # the row level of test-time windows per recording, when several 
 NO_KEYS = "all"  # the single row label when no override varies across runs
 
 
+def scipy_stats():
+    """scipy.stats, imported when a table first needs it (0.7 s of import)."""
+    from scipy import stats  # deferred
+
+    return stats
+
+
 def t_interval(values) -> tuple[float, float]:
     """The CONFIDENCE Student t interval of the mean of values (NaN, NaN with fewer than two), within [0, inf).
 
@@ -24,8 +31,7 @@ def t_interval(values) -> tuple[float, float]:
         return math.nan, math.nan
     if np.ptp(v) == 0:  # seeds that agree (a baseline without randomness): the interval is the value itself
         return float(v[0]), float(v[0])
-    from scipy import stats  # here: importing the report's tables loads no scipy
-
+    stats = scipy_stats()
     low, high = stats.t.interval(CONFIDENCE, len(v) - 1, loc=v.mean(), scale=stats.sem(v))
     return max(float(low), 0.0), float(high)
 
@@ -35,9 +41,7 @@ def wilcoxon_p(a, b) -> float:
     d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
     if not np.any(d):
         return 1.0
-    from scipy import stats
-
-    return float(stats.wilcoxon(a, b).pvalue)
+    return float(scipy_stats().wilcoxon(a, b).pvalue)
 
 
 def paired_p(paired: dict | None, label_a, label_b, col) -> float | None:

@@ -6,8 +6,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import pandas as pd
 
+from hybrid_sysid.report.plotting import PERCENT, figure_legend, percent, save_figure
 from hybrid_sysid.report.stats import K_LEVEL
 from hybrid_sysid.report.tables import METRICS
 
@@ -20,10 +22,6 @@ def transfer_figure(table: pd.DataFrame, path: Path, noise: float = 0.0, k: int 
     adapted with each objective, from scratch, oracle, a baseline: as many as the table has), p1 and p2 side by
     side at one noise level and K, in percent; error bars: std over seeds. ``table`` has the row levels scenario
     and row (and K when several were evaluated)."""
-    import matplotlib.pyplot as plt
-
-    from hybrid_sysid.report.plotting import PERCENT, figure_legend, percent, save_figure
-
     if K_LEVEL in table.index.names:
         table = table.xs(k, level=K_LEVEL)
     params = [p for n, p, s in table.columns if s == "mean" and n == noise]

@@ -9,7 +9,9 @@ from pathlib import Path
 import pandas as pd
 
 from hybrid_sysid.report.markdown import markdown_table
+from hybrid_sysid.report.plotting import figure_legend, noise_axis, panels, save_figure
 from hybrid_sysid.report.stats import K_LEVEL
+from hybrid_sysid.report.sweep_figures import draw_rows, row_dicts
 from hybrid_sysid.report.tables import METRICS
 from hybrid_sysid.runs.reading import read_yaml
 
@@ -61,9 +63,6 @@ def tuning_figure(table: pd.DataFrame, path: Path, k: int = 1, metric: str = "me
     """experiment=tuned: the metric in percent against noise std, one colour per objective, dashed with its
     default values and solid with its tuned ones, one panel per parameter, at one K; error bars: std over seeds.
     ``table`` has the row levels objective and tuning (and K when several were evaluated)."""
-    from hybrid_sysid.report.plotting import figure_legend, noise_axis, panels, save_figure
-    from hybrid_sysid.report.sweep_figures import draw_rows, row_dicts
-
     if K_LEVEL in table.index.names:
         table = table.xs(k, level=K_LEVEL)
     cells = [c for c in table.columns if c[2] == "mean"]

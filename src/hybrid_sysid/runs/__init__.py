@@ -11,7 +11,7 @@ def hydra_subdir(output_dir: str | None) -> str | None:
     holding a completed run. Its saved config belongs to its record and is never replaced: a re-run of it is
     skipped or refused (launch.job), after Hydra would already have rewritten it. Registered here, where records are
     read: every command imports this layer before Hydra starts a job."""
-    from hybrid_sysid.runs.rundir import RunDir
+    from hybrid_sysid.runs.rundir import RunDir  # deferred
 
     return None if output_dir and RunDir(output_dir).completed_record() is not None else ".hydra"
 

@@ -11,6 +11,8 @@ SweepDir beside it)::
     <sweep>/multirun.yaml         Hydra's record of the sweep's command line
 """
 
+from pathlib import Path
+
 CONFIG, OVERRIDES, HYDRA = ".hydra/config.yaml", ".hydra/overrides.yaml", ".hydra/hydra.yaml"
 RECORD = "metrics.json"
 PREDICTIONS, CURVES = "predictions.csv", "curves.csv"
@@ -30,8 +32,6 @@ def enclosing_run(path):
     """The run or sweep directory at or above ``path`` (links and ``..`` resolved): the nearest folder holding
     .hydra/, multirun.yaml or metrics.json; None outside any. An output never lands there: those files are a
     record only their own command writes."""
-    from pathlib import Path
-
     path = Path(path).resolve()
     for folder in (path, *path.parents):
         if (folder / ".hydra").is_dir() or (folder / SWEEP_CONFIG).is_file() or (folder / RECORD).is_file():

@@ -3,7 +3,11 @@ writes there and released when that process releases it or ends, however it ends
 
 from __future__ import annotations
 
+import fcntl  # filelock's lock on POSIX is flock(2), which a shared flock request meets (Linux only)
+import os
 from pathlib import Path
+
+from filelock import FileLock, Timeout
 
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.ranks import is_global_zero
@@ -15,8 +19,6 @@ _held: dict[str, object] = {}  # this process's locks, by directory: a lock is t
 def hold_for_writing(path: Path, key: str):
     """Take the one-writer lock of a run or sweep directory and return it; ConfigError naming ``key`` when another
     process holds it. The directory must exist."""
-    from filelock import FileLock, Timeout
-
     lock = FileLock(str(Path(path) / WRITER_LOCK), timeout=0)
     try:
         lock.acquire()
@@ -49,9 +51,6 @@ def held_elsewhere(path: Path) -> bool:
     it: a shared lock is asked for and at once given back, on a descriptor opened read-only, so a directory a
     reader may not write (a received run) can be asked too. A lock file that is missing or cannot be opened is no
     writer's."""
-    import fcntl  # filelock's lock on POSIX is flock(2), which a shared flock request meets (runs on Linux only)
-    import os
-
     if holds(path):
         return False
     try:

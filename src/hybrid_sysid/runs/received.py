@@ -11,7 +11,12 @@ file, until a command names the files again.
 
 from __future__ import annotations
 
-from omegaconf import DictConfig, OmegaConf
+from antlr4.tree.Tree import TerminalNode
+from omegaconf import DictConfig, OmegaConf, grammar_parser
+from omegaconf.grammar.gen.OmegaConfGrammarParser import OmegaConfGrammarParser as Parser
+
+from hybrid_sysid.config.schema import PathsConfig
+from hybrid_sysid.data.recordings_files import UNNAMED
 
 # resolvers that read the config alone (hybrid_sysid.config.resolvers, and OmegaConf's oc.select); every other one
 # may read the environment (oc.env), a file or a record (hydra_subdir), Hydra's state (hydra), or build config
@@ -28,16 +33,12 @@ class NotData(ValueError):
 def as_data(cfg: DictConfig) -> DictConfig:
     """``cfg`` with this machine's paths and cache directory in place of the received ones, once every other
     interpolation in it goes through PURE_RESOLVERS alone; NotData otherwise. Nothing is resolved here."""
-    from hybrid_sysid.config.schema import PathsConfig  # the config layer, loaded by readers of configs only
-
     if LOCAL in cfg:
         cfg[LOCAL] = OmegaConf.to_container(OmegaConf.structured(PathsConfig))
     if isinstance(cfg.get("data", None), DictConfig) and "cache_dir" in cfg.data:
         cfg.data.cache_dir = "${paths.cache_dir}"  # this machine's cache: a received one is never written to
     if isinstance(cfg.get("data", None), DictConfig) and cfg.data.get("path") is not None:
-        from hybrid_sysid.data.recordings_files import UNNAMED  # eval refuses it until data.path is given again
-
-        cfg.data.path, cfg.data.labels = UNNAMED, None
+        cfg.data.path, cfg.data.labels = UNNAMED, None  # eval refuses it until data.path is given again
     for where, text in _strings(OmegaConf.to_container(cfg, resolve=False)):
         if where.split(".")[0] == LOCAL or "${" not in text:
             continue
@@ -70,10 +71,6 @@ def _strings(node, where: str = ""):
 def _impure_resolver(text: str) -> str | None:
     """The first resolver in ``text`` outside PURE_RESOLVERS (a name built by an interpolation is one), or
     "a malformed interpolation" when OmegaConf's grammar cannot parse it; None when every one is pure."""
-    from antlr4.tree.Tree import TerminalNode
-    from omegaconf import grammar_parser
-    from omegaconf.grammar.gen.OmegaConfGrammarParser import OmegaConfGrammarParser as Parser
-
     try:
         tree = grammar_parser.parse(text)
     except Exception:  # noqa: BLE001 - the grammar's errors are several classes

@@ -108,7 +108,7 @@ def resume_checkpoint(run: RunDir) -> Path | None:
 
 
 def _loadable(path: Path) -> bool:
-    import torch  # here: a sweep's parent process reads run directories without loading torch
+    import torch  # deferred
 
     try:
         torch.load(path, map_location="cpu", weights_only=True)

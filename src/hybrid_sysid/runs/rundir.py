@@ -19,9 +19,9 @@ from pathlib import Path
 
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.config.targets import check_saved
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.files import read_json, write_atomic, write_json_atomic, write_yaml_atomic
-from hybrid_sysid.core.overrides import Override, parse_overrides
 from hybrid_sysid.runs import layout, locks
 from hybrid_sysid.runs.reading import load_config, read_yaml
 from hybrid_sysid.runs.received import NotData, as_data
@@ -131,8 +131,6 @@ class RunDir:
         """The composed config the run saved, with this machine's paths (runs.received); ConfigError naming ``key``
         when it has none, is damaged or reads the environment, and naming the class when it builds one neither
         this package's nor an installed plugin's (a plugin not installed here: the package its record names)."""
-        from hybrid_sysid.config.targets import check_saved  # the config layer, loaded by readers of configs only
-
         if not self.config_file.is_file():
             bad(key, Shown(str(self.path)), f"it has no {layout.CONFIG} (a run directory written by hybrid-sysid)")
         try:
@@ -178,10 +176,6 @@ class RunDir:
         saved = read_yaml(self.path / layout.OVERRIDES)
         return [str(o) for o in saved] if isinstance(saved, list) else []
 
-    def parsed_overrides(self) -> list[Override]:
-        """``overrides``, each parsed as (prefix, key, value) (core.overrides.parse_override)."""
-        return parse_overrides(self.overrides())
-
     def trained_checkpoint(self, key: str = "run", which: str | None = None) -> Path:
         """The weights a trained run is used with: best.ckpt, or last.ckpt when it never validated (``which``:
         "best" or "last" for that one alone); ConfigError naming ``key`` otherwise."""
@@ -194,13 +188,16 @@ class RunDir:
                 return path
             if path.exists() or path.is_symlink():  # a FIFO, device or folder: never fall back to other weights
                 bad(key, Shown(str(self.path)), f"a run whose checkpoints/{name} is a regular file (it is not)")
-        trained = f"a run that trained a network, with checkpoints/{' or '.join(names)} (hybrid-sysid writes both)"
-        bad(key, Shown(str(self.path)), trained)
+        bad(
+            key,
+            Shown(str(self.path)),
+            f"a run that trained a network, with checkpoints/{' or '.join(names)} (hybrid-sysid writes both)",
+        )
 
     def load_weights(self, key: str = "run", which: str | None = None) -> tuple[Path, dict]:
         """The trained checkpoint (``trained_checkpoint``) and its state_dict; ConfigError naming ``key`` when it
         cannot be read (truncated, another format)."""
-        import torch  # here: reading a run's layout loads no torch
+        import torch  # deferred
 
         path = self.trained_checkpoint(key, which)
         try:
@@ -210,7 +207,7 @@ class RunDir:
 
     def read_table(self, name: str):
         """predictions.csv or curves.csv as a DataFrame; OSError or ValueError when absent or damaged."""
-        import pandas as pd
+        import pandas as pd  # deferred
 
         return pd.read_csv(self.path / name)
 
@@ -248,8 +245,12 @@ class RunDir:
         wanted = [o for o in overrides if not o.startswith("resume=")]
         had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
         if sorted(had) != sorted(wanted):
-            other = f"it holds a completed run of other overrides ({' '.join(had)})"
-            bad("hydra.run.dir", Shown(str(self.path)), f"{other}; choose another hydra.run.dir / hydra.sweep.dir")
+            bad(
+                "hydra.run.dir",
+                Shown(str(self.path)),
+                f"it holds a completed run of other overrides ({' '.join(had)}); choose another hydra.run.dir / "
+                "hydra.sweep.dir",
+            )
         return record
 
     def drop_stale_record(self) -> None:

@@ -19,6 +19,7 @@ from hybrid_sysid.runs.layout import CONFIG
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.callbacks import AtomicCheckpointIO, StopAtSafePoints, ValidateAtEnd
 from hybrid_sysid.training.data_arguments import window_arguments
+from hybrid_sysid.training.recordings import recordings_datamodule
 
 log = logging.getLogger("hybrid_sysid")
 
@@ -37,8 +38,6 @@ def build_datamodule(cfg: DictConfig, objective=None) -> QuarterCarDataModule:
         return data_module(cfg, objective)
     d = cfg.data
     if d.get("path") is not None:  # a user's recordings (data=recordings), read from their files
-        from hybrid_sysid.training.recordings import recordings_datamodule
-
         return recordings_datamodule(cfg, objective)
     return QuarterCarDataModule(
         DatasetSpec.from_config(cfg),

@@ -6,6 +6,7 @@ from __future__ import annotations
 from functools import lru_cache
 
 import numpy as np
+from scipy import special
 
 from hybrid_sysid.physics.eiv.criterion import re_sum
 from hybrid_sysid.physics.eiv.matrices import schur
@@ -32,8 +33,6 @@ def advance_kernel(u, half_width: int):
     physics.sensors, zero for |u| >= half_width + 1, where the sinc itself vanishes as a tap enters or leaves, so
     the advance is continuous in the delay. The derivatives by central differences: the kernel is analytic within
     its support, and their error (1e-10, 1e-8) is far below what the Newton steps need."""
-    from scipy import special  # here: importing the physics layer loads no scipy
-
     support = half_width + 1
     beta = min(BETA_PER_TAP * half_width, BETA_MAX)
 

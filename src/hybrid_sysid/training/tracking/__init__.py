@@ -25,6 +25,7 @@ from hybrid_sysid.training.tracking.mlflow_store import (
     log_run_figures,
     log_run_files,
     log_sweep,
+    mlflow_client,
     mlflow_experiment,
     run_tags,
     sweep_tags,
@@ -100,10 +101,8 @@ def build_loggers(
                 location = fill["artifact_location"] = artifact_root(db, exp_name)
             lock = FileLock(str(db) + ".lock")
         with lock:
-            from mlflow import MlflowClient
-
             # the experiment made here first, with its tags and artifact location, so Lightning finds it
-            mlflow_experiment(MlflowClient(uri or None), exp_name, location, exp_tags)
+            mlflow_experiment(mlflow_client(uri or None), exp_name, location, exp_tags)
             logger = build(lg, f"logger.{name}", **fill)
             logger.experiment  # noqa: B018 - the property creates the run
         out.append(logger)

@@ -8,8 +8,7 @@ from typing import Any, Iterable
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config.tags import joined
-from hybrid_sysid.core.overrides import parse_override
-from hybrid_sysid.training.tracking.naming import Naming, objective_name
+from hybrid_sysid.training.tracking.naming import Naming, objective_name, override_key
 
 # the hyperparameters of the table, beside the config groups chosen and the swept keys
 HPARAM_GROUPS = ("objective", "baseline", "model", "data", "noise")
@@ -38,7 +37,7 @@ def hparams_values(cfg: DictConfig, naming: Naming) -> dict[str, Any]:
         if isinstance(value, (int, float, str, bool)):
             out[key] = value
     for override in naming.varied:
-        _, key, text = parse_override(override)
+        key, text = override_key(override), override.split("=", 1)[-1]
         if key in out:
             continue
         value = OmegaConf.select(cfg, key, default=None) if "@" not in key else None
@@ -57,9 +56,9 @@ def write_hparams(logger, params: dict, metrics: dict[str, float], varied: Itera
     The keys in ``varied`` are marked as differing between the runs: the tab shows them first (it shows 5
     hyperparameters until more are ticked)."""
     try:
-        from torch.utils.tensorboard.summary import hparams
+        from torch.utils.tensorboard.summary import hparams  # deferred
     except ImportError:  # Lightning writes with tensorboardX when tensorboard is absent
-        from tensorboardX.summary import hparams
+        from tensorboardX.summary import hparams  # deferred
 
     experiment, start, end = hparams(params, hparams_metrics(metrics))
     mark_differing(experiment, set(varied))
@@ -76,7 +75,7 @@ def mark_differing(experiment, keys: set[str]) -> None:
     it computes the flag itself only for runs without an experiment summary). Unchanged without the tensorboard
     package's protos."""
     try:
-        from tensorboard.plugins.hparams.plugin_data_pb2 import HParamsPluginData
+        from tensorboard.plugins.hparams.plugin_data_pb2 import HParamsPluginData  # deferred
     except ImportError:
         return
     value = experiment.value[0]

@@ -25,6 +25,13 @@ SWEEP_ARTIFACTS = ("*.md", "*.csv", "*.tex", SWEEP_CONFIG, "optimization_results
 _finished: dict[str, list[tuple[str, str]]] = {}  # run directory -> (tracking URI, MLflow run id) of its runs
 
 
+def mlflow_client(uri: str | None):
+    """MLflow's client of the tracking store ``uri`` (MLflow's default where None); mlflow is an optional extra."""
+    from mlflow import MlflowClient  # deferred
+
+    return MlflowClient(uri)
+
+
 def kind(lg) -> str:
     """A logger node's class name: MLFlowLogger, TensorBoardLogger, CSVLogger."""
     return str(lg.get("_target_", "")).rsplit(".", 1)[-1]
@@ -117,9 +124,7 @@ def log_run_figures(run_dir: Path) -> None:
     """Add the run's figures (``<run dir>/figures/*.png``, drawn after the run ended) to the MLflow runs this
     process finished in ``run_dir``; nothing without such a run. A failure is a warning."""
     for uri, run_id in _finished.pop(str(Path(run_dir).resolve()), []):
-        from mlflow import MlflowClient
-
-        guarded("the run's figures", log_run_files, MlflowClient(uri), run_id, run_dir, True)
+        guarded("the run's figures", log_run_files, mlflow_client(uri), run_id, run_dir, True)
 
 
 def log_sweep(config: DictConfig, sweep_dir: Path) -> None:
@@ -132,8 +137,7 @@ def log_sweep(config: DictConfig, sweep_dir: Path) -> None:
 
 
 def _log_sweep(config: DictConfig, lg: DictConfig, sweep_dir: Path) -> None:
-    from mlflow import MlflowClient
-    from mlflow.utils.mlflow_tags import MLFLOW_RUN_NAME
+    from mlflow.utils.mlflow_tags import MLFLOW_RUN_NAME  # deferred
 
     preset = OmegaConf.select(config, "hydra.runtime.choices.experiment", default=None)
     name = str(lg.experiment_name) if lg.get("experiment_name") is not None else experiment_name(preset, sweep_dir)
@@ -143,7 +147,7 @@ def _log_sweep(config: DictConfig, lg: DictConfig, sweep_dir: Path) -> None:
         db = Path(uri.removeprefix("sqlite:///"))
         location = location or artifact_root(db, name)
         lock = FileLock(str(db) + ".lock")
-    client, tags = MlflowClient(uri), sweep_tags(preset, sweep_dir)
+    client, tags = mlflow_client(uri), sweep_tags(preset, sweep_dir)
     with lock:
         exp_id = mlflow_experiment(client, name, location, tags)
     previous = client.search_runs([exp_id], filter_string="tags.kind = 'sweep'", max_results=1)

@@ -9,9 +9,10 @@ import logging
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from hydra.core.override_parser.overrides_parser import OverridesParser
+from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
-from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -52,8 +53,6 @@ def job_naming(hc: DictConfig) -> Naming:
 
 
 def _job_naming(hc: DictConfig) -> Naming:
-    from hydra.types import RunMode
-
     choices = {k: v for k, v in OmegaConf.to_container(hc.runtime.choices).items() if v is not None}
     preset, overrides = choices.get("experiment"), list(hc.overrides.task)
     if hc.mode != RunMode.MULTIRUN:
@@ -71,8 +70,6 @@ def swept_keys(sweep_dir: Path, params=None) -> set[str]:
     sweeper's parameters (an experiment preset's ``hydra.sweeper.params``, a search's space), read from the
     sweep's multirun.yaml, which Hydra's sweepers write before the first job; ``params``: the job's own sweeper
     parameters, for a sweep directory without that file."""
-    from hydra.core.override_parser.overrides_parser import OverridesParser
-
     texts = []
     saved = SweepDir(sweep_dir).saved_config()
     try:
@@ -96,7 +93,7 @@ def swept_keys(sweep_dir: Path, params=None) -> set[str]:
 
 def override_key(override: str) -> str:
     """The key an override sets: ``+model.optim.lr=0.1`` -> ``model.optim.lr``, ``db@pkg=x`` -> ``db@pkg``."""
-    return parse_override(override).key
+    return override.split("=", 1)[0].lstrip("+~")
 
 
 def clip(name: str) -> str:

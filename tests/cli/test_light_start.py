@@ -1,0 +1,65 @@
+"""Starting is cheap: ``hybrid-sysid --help`` and the refusals that come before any work load neither Lightning,
+torch, scipy.signal nor numba (seconds of CPU between them; the package docstring lists what is deferred and why).
+The commands run as their console scripts would, in a new interpreter that has loaded nothing yet."""
+
+import json
+import os
+import subprocess
+import sys
+
+HEAVY = ("lightning", "torch", "scipy.signal", "numba")
+# each command's main() as its console script calls it, one after the other in one new process: a module any of
+# them loaded is still in sys.modules at the end. A control then loads the dataset kernel, which needs numba, so
+# the probe is seen to find a heavy module when one is loaded.
+PROBE = """
+import json, os, sys
+from hydra.core.global_hydra import GlobalHydra
+from hybrid_sysid.cli import evaluate, predict, report, train
+from hybrid_sysid.launch.process import PROCESS
+
+HEAVY = {heavy!r}
+codes = {{}}
+for name, main, args in [
+    ("help", train.main, ["--help"]),
+    ("max_steps", train.main, ["trainer.max_steps=-1"]),
+    ("objective", train.main, ["objective=nonexistent"]),
+    ("predict", predict.main, ["run=no_run", "input=missing.csv"]),
+    ("report", report.main, ["missing_sweep"]),
+    ("eval", evaluate.main, ["run=no_run"]),
+]:
+    sys.argv = [name, *args]
+    try:
+        codes[name] = main() or 0
+    except SystemExit as exc:
+        codes[name] = exc.code
+    PROCESS.reset()
+    GlobalHydra.instance().clear()
+loaded = sorted(m for m in HEAVY if m in sys.modules)
+import hybrid_sysid.data.cache
+control = sorted(m for m in HEAVY if m in sys.modules)
+print("PROBE " + json.dumps({{"codes": codes, "loaded": loaded, "control": control, "left": os.listdir(".")}}))
+"""
+
+
+def test_help_and_refusals_before_work_load_no_heavy_module(tmp_path):
+    work = tmp_path / "work"
+    work.mkdir()
+    env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # as a user has it
+    env["HYBRID_SYSID_CACHE"] = str(tmp_path / "cache")
+    proc = subprocess.run(
+        [sys.executable, "-c", PROBE.format(heavy=HEAVY)],
+        cwd=work,
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,  # a hang guard only
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    found = json.loads(proc.stdout.rsplit("PROBE ", 1)[1])
+    assert "usage: hybrid-sysid [-m] [key=value ...]" in proc.stdout  # the help was printed, not refused
+    assert found["codes"] == {"help": 0, "max_steps": 2, "objective": 2, "predict": 2, "report": 2, "eval": 2}
+    for line in ("error: trainer.max_steps = -1", "error: objective", "missing.csv", "missing_sweep", "no_run"):
+        assert line in proc.stderr, proc.stderr[-3000:]
+    assert found["loaded"] == [], found
+    assert "numba" in found["control"], found  # the probe sees a heavy module once one is loaded
+    assert found["left"] == [] and not (tmp_path / "cache").exists()
