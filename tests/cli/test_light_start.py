@@ -7,6 +7,8 @@ import os
 import subprocess
 import sys
 
+import pytest
+
 HEAVY = ("lightning", "torch", "scipy.signal", "numba")
 # each command's main() as its console script calls it, one after the other in one new process: a module any of
 # them loaded is still in sys.modules at the end. A control then loads the dataset kernel, which needs numba, so
@@ -63,3 +65,25 @@ def test_help_and_refusals_before_work_load_no_heavy_module(tmp_path):
     assert found["loaded"] == [], found
     assert "numba" in found["control"], found  # the probe sees a heavy module once one is loaded
     assert found["left"] == [] and not (tmp_path / "cache").exists()
+
+
+@pytest.mark.parametrize("overrides", [[], ["experiment=robustness"], ["car=soft_seat", "+data.x=1"]])
+def test_help_in_one_composition_is_hydras_own_help(tmp_path, cli_in_process, overrides):
+    """hybrid-sysid --help (config.help) prints what Hydra's own help path prints, groups and options alike."""
+    from hybrid_sysid.cli.train import hydra_main, main
+    from hybrid_sysid.config import CONF_DIR
+    from hybrid_sysid.config.help import quick_help
+    from hybrid_sysid.launch.process import console_main
+
+    code, out, _ = cli_in_process(main, *overrides, "--help", cwd=tmp_path)
+    hydras = cli_in_process(lambda: console_main(hydra_main, sys.argv[1:]), *overrides, "--help", cwd=tmp_path)
+    quick = quick_help([*overrides, "--help"], CONF_DIR, "config")  # the command's own path, not Hydra's
+    assert quick is not None and (code, out) == (0, quick + "\n") == hydras[:2]
+    assert "\nmodel: anchored, fast_cnn, paper_cnn\n" in quick and "hydra/" not in quick
+
+
+def test_help_with_an_option_that_does_not_exist_is_hydras_one_line_refusal(tmp_path, cli_in_process):
+    from hybrid_sysid.cli.train import main
+
+    code, out, err = cli_in_process(main, "objective=nonexistent", "--help", cwd=tmp_path)
+    assert code == 2 and out == "" and err.startswith("error: objective") and len(err.strip().splitlines()) == 1

@@ -21,7 +21,9 @@ from omegaconf import DictConfig
 
 from hybrid_sysid import config
 from hybrid_sysid.config import validate
+from hybrid_sysid.config.help import quick_help
 from hybrid_sysid.core.checks import Shown, bad
+from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
 from hybrid_sysid.launch.process import console_main
 from hybrid_sysid.runs.layout import SWEEP_CONFIG, enclosing_run
@@ -128,6 +130,11 @@ def hydra_main(cfg: DictConfig) -> Any:
 
 def main() -> None:
     """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.launch.process)."""
+    tolerant_streams()
+    text = quick_help(sys.argv[1:], config.CONF_DIR, "config")  # --help in one composition, Hydra's text
+    if text is not None:
+        print(text)
+        return
     console_main(hydra_main, sys.argv[1:])
 
 
