@@ -4,11 +4,10 @@ repeats, converted and checked; a bad argument is one UsageError naming the key,
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import ConfigError, check_dt
 
 
 class UsageError(ConfigError):
@@ -17,9 +16,9 @@ class UsageError(ConfigError):
 
 @dataclass(frozen=True)
 class Key:
-    """One key a command takes. ``kind``: text, bool (true or false), int (>= ``low``), positive (a number > 0),
-    choice (one of ``choices``) or list (comma-separated, brackets optional). ``repeats``: may be given more than
-    once, each value kept in order."""
+    """One key a command takes. ``kind``: text, bool (true or false), int (>= ``low``), dt (a time step in seconds,
+    core.checks.check_dt), choice (one of ``choices``) or list (comma-separated, brackets optional). ``repeats``: may
+    be given more than once, each value kept in order."""
 
     kind: str = "text"
     default: object = None
@@ -74,14 +73,8 @@ def convert(name: str, value: str, key: Key):
         if number < key.low:
             raise UsageError(name, value, key.allowed or f"an integer >= {key.low}")
         return number
-    if key.kind == "positive":
-        try:
-            number = float(value)
-        except ValueError:
-            number = math.nan
-        if not (math.isfinite(number) and number > 0):
-            raise UsageError(name, value, key.allowed or "a number > 0")
-        return number
+    if key.kind == "dt":
+        return check_dt(value, name, key.allowed or "a time step > 0 in seconds", UsageError, text=True)
     if key.kind == "choice":
         if value not in key.choices:
             raise UsageError(name, value, f"one of {', '.join(key.choices)}")

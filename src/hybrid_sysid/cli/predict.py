@@ -41,7 +41,7 @@ KEYS = {
     "overwrite": Key("bool", False),
     "windows": Key("int", 8),
     "resample": Key("bool", False),
-    "dt": Key("positive", allowed="a sampling interval > 0 in seconds"),
+    "dt": Key("dt", allowed="a sampling interval > 0 in seconds"),
 }
 
 

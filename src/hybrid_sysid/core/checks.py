@@ -13,6 +13,7 @@ import math
 import numbers
 
 NO_VALUE = object()  # ConfigError's value when the message shows none
+DT_ALLOWED = "must be > 0 (seconds)"  # check_dt's words unless its caller has its own
 
 
 class Shown(str):
@@ -105,6 +106,25 @@ def check_number(key: str, value, low=None, high=None, *, low_open=False, high_o
 def check_positive(key: str, value, unit: str = "") -> float:
     """A finite number > 0 (a time step, a speed, a mass)."""
     return check_number(key, value, 0, low_open=True, unit=unit)
+
+
+def check_dt(
+    value, key: str = "dt", allowed: str = DT_ALLOWED, error: type = ConfigError, *, text=False, shown=NO_VALUE
+) -> float:
+    """A time step: a finite number of seconds > 0, returned as a float. Every dt the package takes is checked
+    here; each entry point keeps its own words: ``key``, ``allowed``, the ``error`` class and the value ``shown``
+    (the value itself by default). ``text``: anything float() reads counts (a command line's "0.002")."""
+    if text:
+        try:
+            number = float(value)
+        except (TypeError, ValueError):
+            number = math.nan
+    else:
+        real = isinstance(value, numbers.Real) and not isinstance(value, bool)
+        number = float(value) if real else math.nan
+    if not (math.isfinite(number) and number > 0):
+        raise error(key, value if shown is NO_VALUE else shown, allowed)
+    return number
 
 
 def check_int(key: str, value, low: int) -> int:

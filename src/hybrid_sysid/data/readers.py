@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from hybrid_sysid.core.checks import InputError, Shown
+from hybrid_sysid.core.checks import InputError, Shown, check_dt
 from hybrid_sysid.core.memory import tightest_memory
 from hybrid_sysid.data.spec import DT_RTOL
 
@@ -217,9 +217,10 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
             )
     if "dt" in arrays:
         a = arrays["dt"]
-        if a.dtype.kind not in "fiu" or a.size != 1 or not (np.isfinite(a).all() and a.item() > 0):
-            raise InputError(f"input = {path}: array dt", a.tolist(), "one number > 0 (seconds)")
-        dt = choose_dt(float(a.item()), dt, path, "the array dt")
+        number = a.item() if a.dtype.kind in "fiu" and a.size == 1 else None  # None: refused, shown as it is
+        where = f"input = {path}: array dt"
+        file_dt = check_dt(number, where, "one number > 0 (seconds)", InputError, shown=a.tolist())
+        dt = choose_dt(file_dt, dt, path, "the array dt")
     return Recordings(arrays["seat_acc"], arrays["body_acc"], dt)
 
 

@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from hybrid_sysid.core.checks import bad, check_choice, check_int, check_number, check_positive
+from hybrid_sysid.core.checks import bad, check_choice, check_dt, check_int, check_number, check_positive
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, INTEGRATIONS, MEASUREMENTS, ROAD_CLASSES, STEPPED
 from hybrid_sysid.data.splits import Split, split_by_road
 from hybrid_sysid.physics import QuarterCar, stable_dt_limit
@@ -72,7 +72,7 @@ class DatasetSpec:
             bad("n_roads", self.n_roads, "need at least 2 roads to split by road into train and test")
         check_int("n_masses", self.n_masses, 1)
         check_int("n_steps", self.n_steps, 2)
-        check_positive("dt", self.dt, "seconds")
+        check_dt(self.dt)
         check_positive("speed", self.speed, "m/s")
         check_int("n_waves", self.n_waves, 2)
         if not (isinstance(self.m3_min, (int, float)) and self.m3_min > 0):

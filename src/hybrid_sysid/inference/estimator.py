@@ -10,7 +10,6 @@ warning per kind. ``load_estimator`` (inference.loading) makes one of a run dire
 
 from __future__ import annotations
 
-import math
 import warnings
 from fractions import Fraction
 from typing import Sequence
@@ -21,7 +20,7 @@ import torch
 from omegaconf import DictConfig
 from scipy.signal import resample_poly
 
-from hybrid_sysid.core.checks import ConfigError, Shown
+from hybrid_sysid.core.checks import ConfigError, Shown, check_dt
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT
 from hybrid_sysid.data.readers import DT_RTOL
 from hybrid_sysid.data.spec import window_starts
@@ -199,13 +198,7 @@ class Estimator:
         return estimates
 
     def _check_dt(self, dt, resample: bool) -> float:
-        given = dt
-        try:
-            dt = float(dt)
-        except (TypeError, ValueError):
-            dt = math.nan
-        if not (math.isfinite(dt) and dt > 0):
-            raise InputError("dt", given, "a finite sampling interval > 0 in seconds")
+        dt = check_dt(dt, "dt", "a finite sampling interval > 0 in seconds", InputError, text=True)
         if abs(dt - self.dt) <= DT_RTOL * self.dt:
             return self.dt
         if not resample:

@@ -18,7 +18,7 @@ import numbers
 
 import numpy as np
 
-from hybrid_sysid.core.checks import ConfigError, bad, check_positive
+from hybrid_sysid.core.checks import ConfigError, bad, check_dt
 from hybrid_sysid.core.options import FILTER_KEYS
 
 MAX_TAPS = 100_001  # 500 s at dt = 0.005 s, 800 kB a filter: longer than any window a recording would give
@@ -26,7 +26,7 @@ MAX_TAPS = 100_001  # 500 s at dt = 0.005 s, 800 kB a filter: longer than any wi
 
 def check_bandpass(low_hz, high_hz, taps, dt) -> None:
     """ConfigError naming the argument, the value and what is allowed."""
-    check_positive("dt", dt, "seconds; the data's time step")
+    check_dt(dt, allowed="must be > 0 (seconds; the data's time step)")
     nyquist = 0.5 / dt
     if not isinstance(taps, numbers.Integral) or isinstance(taps, bool) or taps < 3 or taps % 2 == 0:
         bad("taps", taps, "must be an odd integer >= 3 (a symmetric, zero-phase FIR)")

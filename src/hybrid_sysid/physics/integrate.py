@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from hybrid_sysid.core.checks import check_positive
+from hybrid_sysid.core.checks import check_dt
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT
 from hybrid_sysid.physics.quarter_car import check_measurement
 
@@ -15,7 +15,7 @@ def integrate(acc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray]:
     Returns float64 (velocity, position), each the shape of ``acc``. Integrate once per whole recording
     from t0: a window integrated on its own would start from unknown velocity and position.
     """
-    check_positive("dt", dt, "seconds")
+    check_dt(dt)
     acc = np.asarray(acc, dtype=np.float64)
     vel = np.zeros_like(acc)
     np.cumsum(acc[..., :-1], axis=-1, out=vel[..., 1:])
@@ -31,7 +31,7 @@ def integrate_trapezoid(acc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndar
     Second-order accurate for samples of a smooth signal, where symplectic Euler is first-order: the
     re-integration that suits recordings of continuous motion (measurement "continuous").
     """
-    check_positive("dt", dt, "seconds")
+    check_dt(dt)
     vel = _trapezoid(np.asarray(acc, dtype=np.float64), dt)
     return vel, _trapezoid(vel, dt)
 
@@ -92,7 +92,7 @@ def integrate_corrected(acc: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndar
     wheel's damper), so their unfiltered regressors keep that constant and ramp; a band-pass of zero DC and
     ramp gain removes both.
     """
-    check_positive("dt", dt, "seconds")
+    check_dt(dt)
     vel = correct_gain(_trapezoid(np.asarray(acc, dtype=np.float64), dt))
     return vel, correct_gain(_trapezoid(vel, dt))
 

@@ -14,7 +14,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hybrid_sysid.core.checks import bad, check_choice, check_positive
+from hybrid_sysid.core.checks import bad, check_choice, check_dt
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, STEPPED
 
 # What a recording holds as the two sensors' accelerations (core.options.MEASUREMENTS): "paper" is eq. 12 from the
@@ -260,7 +260,7 @@ def simulate(
         An unknown ``measurement``, ``dt`` <= 0 or a mass <= 0.
     """
     check_choice("measurement", measurement, STEPPED)  # continuous recordings come from physics.exact
-    check_positive("dt", dt, "seconds")
+    check_dt(dt)
     road = np.asarray(road, dtype=float)
     p1, p2 = car.parameters(m3)
     batch = np.broadcast_shapes(road.shape[:-1], np.shape(p1))

@@ -11,7 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
-from hybrid_sysid.core.checks import bad, check_int, check_positive
+from hybrid_sysid.core.checks import bad, check_dt, check_int, check_positive
 from hybrid_sysid.core.options import ROAD_CLASSES
 
 _CLASS_EXPONENT = {c: 2 * i for i, c in enumerate(ROAD_CLASSES)}  # A: k=0 ... E: k=8
@@ -100,7 +100,7 @@ def road_profiles(
     """
     classes = _check_classes(road_classes)
     check_int("n_steps", n_steps, 1)
-    check_positive("dt", dt, "seconds")
+    check_dt(dt)
     check_positive("speed", speed, "m/s")
     rng = np.random.default_rng(rng)
     phases = road_phases(len(classes), n_waves, rng)

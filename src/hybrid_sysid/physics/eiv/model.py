@@ -36,7 +36,7 @@ from typing import NamedTuple
 import numpy as np
 from numpy.polynomial import polynomial as poly
 
-from hybrid_sysid.core.checks import bad, check_choice, check_number, check_positive
+from hybrid_sysid.core.checks import bad, check_choice, check_dt, check_number
 
 MODELS = ("discrete", "continuous")
 CHUNK = 1 << 17  # windows x frequencies in one block: bounds the ~40 arrays of that size an iteration makes
@@ -159,7 +159,7 @@ def as_windows(seat, body):
 
 def setup_windows(seat, body, dt, noise_ratio, model):
     check_choice("model", model, MODELS)
-    dt = check_positive("dt", dt, "seconds")
+    dt = check_dt(dt)
     lam = check_number("noise_ratio", noise_ratio, 0.0)
     seat, body, good = as_windows(seat, body)
     grid = frequency_grid(model, dt, seat.shape[1])
