@@ -28,6 +28,7 @@ from hybrid_sysid.config import Config, flatten, validate
 from hybrid_sysid.config.versions import upgraded
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.options import EVAL_OVERRIDABLE
+from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
 from hybrid_sysid.launch.process import console_main, fail
 from hybrid_sysid.runs import locks
@@ -46,7 +47,7 @@ MADE: list[Path] = []
 
 def override_keys(overrides) -> list[str]:
     """The dotted key of each command-line override ("car.c3=700" -> "car.c3", "+data.x=1" -> "data.x")."""
-    return [o.split("=", 1)[0].lstrip("+~") for o in overrides]
+    return [parse_override(o).key for o in overrides]
 
 
 def evaluation_config(run_dir: Path, composed: DictConfig, overrides) -> DictConfig:

@@ -26,6 +26,7 @@ from hybrid_sysid.config.composition import composition_error
 from hybrid_sysid.config.loggers import validate_callbacks, validate_loggers
 from hybrid_sysid.core import stop
 from hybrid_sysid.core.install import install_command
+from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.launch.overrides import quoted_overrides
 from hybrid_sysid.launch.state import PROCESS
@@ -56,7 +57,7 @@ def missing_extra(args) -> str | None:
     for arg in args:
         for prefix, (modules, extra) in EXTRAS.items():
             modules = (modules,) if isinstance(modules, str) else modules
-            if arg.lstrip("+~").startswith(prefix) and not any(installed(m) for m in modules):
+            if parse_override(arg).unprefixed.startswith(prefix) and not any(installed(m) for m in modules):
                 name = modules[0].split(".")[-1].replace("_", "-")
                 return f"{arg} needs {name}, which is not installed: {install_command(extra)}"
     return None
@@ -73,7 +74,7 @@ def missing_extra_of_sweep(overrides, task) -> str | None:
         if not override.is_sweep_override():
             args.append(override.input_line)
             continue
-        swept.add(key.lstrip("+~").split("@")[0])
+        swept.add(parse_override(key).group)
         try:
             args += [f"{key}={value}" for value in override.sweep_string_iterator()]
         except Exception:  # noqa: BLE001 - a range or interval of numbers: no choice of a package there

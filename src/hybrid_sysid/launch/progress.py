@@ -16,6 +16,7 @@ from typing import Any
 from hydra.core.override_parser.overrides_parser import OverridesParser
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.core.words import count
 from hybrid_sysid.launch.time_left import estimate
 from hybrid_sysid.runs.sweepdir import SweepDir
@@ -163,7 +164,8 @@ def job_line(header: dict, done: int, num, job_return: Any, seconds: float, now:
     left``; a failed or interrupted job says so with its error. ``now``: the clock (time.time())."""
     now = time.time() if now is None else now
     jobs = header.get("jobs")
-    overrides = dict(o.split("=", 1) for o in (getattr(job_return, "overrides", None) or []) if "=" in o)
+    given = map(parse_override, getattr(job_return, "overrides", None) or [])
+    overrides = {o.written_key: o.value for o in given if o.value is not None}  # as _swept_values names them
     swept = header.get("swept") or [k for k in ("objective", "seed") if k in overrides]
     which = " ".join(f"{k}={_short(overrides[k])}" for k in swept if k in overrides)
     record = record_of(job_return)

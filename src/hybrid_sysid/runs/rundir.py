@@ -22,6 +22,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config.targets import check_saved
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.files import read_json, write_atomic, write_json_atomic, write_yaml_atomic
+from hybrid_sysid.core.overrides import Override, parse_overrides
 from hybrid_sysid.runs import layout, locks
 from hybrid_sysid.runs.reading import load_config, read_yaml
 from hybrid_sysid.runs.received import NotData, as_data
@@ -176,6 +177,10 @@ class RunDir:
         saved = read_yaml(self.path / layout.OVERRIDES)
         return [str(o) for o in saved] if isinstance(saved, list) else []
 
+    def parsed_overrides(self) -> list[Override]:
+        """``overrides``, each parsed as (prefix, key, value) (core.overrides.parse_override)."""
+        return parse_overrides(self.overrides())
+
     def trained_checkpoint(self, key: str = "run", which: str | None = None) -> Path:
         """The weights a trained run is used with: best.ckpt, or last.ckpt when it never validated (``which``:
         "best" or "last" for that one alone); ConfigError naming ``key`` otherwise."""
@@ -188,11 +193,8 @@ class RunDir:
                 return path
             if path.exists() or path.is_symlink():  # a FIFO, device or folder: never fall back to other weights
                 bad(key, Shown(str(self.path)), f"a run whose checkpoints/{name} is a regular file (it is not)")
-        bad(
-            key,
-            Shown(str(self.path)),
-            f"a run that trained a network, with checkpoints/{' or '.join(names)} (hybrid-sysid writes both)",
-        )
+        trained = f"a run that trained a network, with checkpoints/{' or '.join(names)} (hybrid-sysid writes both)"
+        bad(key, Shown(str(self.path)), trained)
 
     def load_weights(self, key: str = "run", which: str | None = None) -> tuple[Path, dict]:
         """The trained checkpoint (``trained_checkpoint``) and its state_dict; ConfigError naming ``key`` when it
@@ -245,12 +247,8 @@ class RunDir:
         wanted = [o for o in overrides if not o.startswith("resume=")]
         had = [o for o in record.get("overrides", []) if not o.startswith("resume=")]
         if sorted(had) != sorted(wanted):
-            bad(
-                "hydra.run.dir",
-                Shown(str(self.path)),
-                f"it holds a completed run of other overrides ({' '.join(had)}); choose another hydra.run.dir / "
-                "hydra.sweep.dir",
-            )
+            other = f"it holds a completed run of other overrides ({' '.join(had)})"
+            bad("hydra.run.dir", Shown(str(self.path)), f"{other}; choose another hydra.run.dir / hydra.sweep.dir")
         return record
 
     def drop_stale_record(self) -> None:

@@ -8,7 +8,8 @@ from typing import Any, Iterable
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config.tags import joined
-from hybrid_sysid.training.tracking.naming import Naming, objective_name, override_key
+from hybrid_sysid.core.overrides import parse_override
+from hybrid_sysid.training.tracking.naming import Naming, objective_name
 
 # the hyperparameters of the table, beside the config groups chosen and the swept keys
 HPARAM_GROUPS = ("objective", "baseline", "model", "data", "noise")
@@ -37,7 +38,7 @@ def hparams_values(cfg: DictConfig, naming: Naming) -> dict[str, Any]:
         if isinstance(value, (int, float, str, bool)):
             out[key] = value
     for override in naming.varied:
-        key, text = override_key(override), override.split("=", 1)[-1]
+        _, key, text = parse_override(override)
         if key in out:
             continue
         value = OmegaConf.select(cfg, key, default=None) if "@" not in key else None

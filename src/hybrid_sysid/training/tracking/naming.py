@@ -13,6 +13,7 @@ from hydra.core.override_parser.overrides_parser import OverridesParser
 from hydra.types import RunMode
 from omegaconf import DictConfig, OmegaConf
 
+from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -93,7 +94,7 @@ def swept_keys(sweep_dir: Path, params=None) -> set[str]:
 
 def override_key(override: str) -> str:
     """The key an override sets: ``+model.optim.lr=0.1`` -> ``model.optim.lr``, ``db@pkg=x`` -> ``db@pkg``."""
-    return override.split("=", 1)[0].lstrip("+~")
+    return parse_override(override).key
 
 
 def clip(name: str) -> str:
