@@ -1,6 +1,7 @@
 """Starting is cheap: ``hybrid-sysid --help`` and the refusals that come before any work load neither Lightning,
-torch, scipy.signal nor numba (seconds of CPU between them; the package docstring lists what is deferred and why).
-The commands run as their console scripts would, in a new interpreter that has loaded nothing yet."""
+torch, scipy.signal nor numba (seconds of CPU between them; the package docstring lists what is deferred and why),
+and those of run, eval and report load neither pandas nor matplotlib. The commands run as their console scripts
+would, in a new interpreter that has loaded nothing yet."""
 
 import json
 import os
@@ -10,6 +11,7 @@ import sys
 import pytest
 
 HEAVY = ("lightning", "torch", "scipy.signal", "numba")
+REPORTING = ("pandas", "matplotlib")  # the report's tables and figures: no refusal before predict's file needs them
 # each command's main() as its console script calls it, one after the other in one new process: a module any of
 # them loaded is still in sys.modules at the end. A control then loads the dataset kernel, which needs numba, so
 # the probe is seen to find a heavy module when one is loaded.
@@ -19,15 +21,15 @@ from hydra.core.global_hydra import GlobalHydra
 from hybrid_sysid.cli import evaluate, predict, report, train
 from hybrid_sysid.launch.process import PROCESS
 
-HEAVY = {heavy!r}
-codes = {{}}
+HEAVY, REPORTING = {heavy!r}, {reporting!r}
+codes, seen = {{}}, {{}}
 for name, main, args in [
     ("help", train.main, ["--help"]),
     ("max_steps", train.main, ["trainer.max_steps=-1"]),
     ("objective", train.main, ["objective=nonexistent"]),
-    ("predict", predict.main, ["run=no_run", "input=missing.csv"]),
     ("report", report.main, ["missing_sweep"]),
     ("eval", evaluate.main, ["run=no_run"]),
+    ("predict", predict.main, ["run=no_run", "input=missing.csv"]),
 ]:
     sys.argv = [name, *args]
     try:
@@ -36,10 +38,12 @@ for name, main, args in [
         codes[name] = exc.code
     PROCESS.reset()
     GlobalHydra.instance().clear()
+    seen[name] = sorted(m for m in REPORTING if m in sys.modules)
 loaded = sorted(m for m in HEAVY if m in sys.modules)
 import hybrid_sysid.data.cache
 control = sorted(m for m in HEAVY if m in sys.modules)
-print("PROBE " + json.dumps({{"codes": codes, "loaded": loaded, "control": control, "left": os.listdir(".")}}))
+found = {{"codes": codes, "seen": seen, "loaded": loaded, "control": control, "left": os.listdir(".")}}
+print("PROBE " + json.dumps(found))
 """
 
 
@@ -49,7 +53,7 @@ def test_help_and_refusals_before_work_load_no_heavy_module(tmp_path):
     env = {k: v for k, v in os.environ.items() if k != "HYDRA_FULL_ERROR"}  # as a user has it
     env["HYBRID_SYSID_CACHE"] = str(tmp_path / "cache")
     proc = subprocess.run(
-        [sys.executable, "-c", PROBE.format(heavy=HEAVY)],
+        [sys.executable, "-c", PROBE.format(heavy=HEAVY, reporting=REPORTING)],
         cwd=work,
         env=env,
         capture_output=True,
@@ -63,6 +67,7 @@ def test_help_and_refusals_before_work_load_no_heavy_module(tmp_path):
     for line in ("error: trainer.max_steps = -1", "error: objective", "missing.csv", "missing_sweep", "no_run"):
         assert line in proc.stderr, proc.stderr[-3000:]
     assert found["loaded"] == [], found
+    assert found["seen"]["eval"] == [], found  # every command before predict, cumulatively
     assert "numba" in found["control"], found  # the probe sees a heavy module once one is loaded
     assert found["left"] == [] and not (tmp_path / "cache").exists()
 

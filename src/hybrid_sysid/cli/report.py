@@ -14,22 +14,14 @@ import sys
 from argparse import Namespace
 from pathlib import Path
 
-import hybrid_sysid.experiments  # noqa: F401 - the experiments' additions to their tables (report.extras)
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
 from hybrid_sysid.core.checks import Shown
+from hybrid_sysid.core.options import METRICS
 from hybrid_sysid.core.stop import Interrupted
-from hybrid_sysid.core.words import count
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.launch.console import tolerant_streams
-from hybrid_sysid.report.collect import find_runs, load_runs
-from hybrid_sysid.report.markdown import to_markdown
-from hybrid_sysid.report.paper import write_reproduction
-from hybrid_sysid.report.results_page import write_results
-from hybrid_sysid.report.run_figures import write_run_figures
-from hybrid_sysid.report.summary import write_summary
-from hybrid_sysid.report.tables import METRICS
-from hybrid_sysid.runs.layout import PREDICTIONS, RECORD, WRITER_LOCK, enclosing_run
-from hybrid_sysid.runs.locks import hold_for_writing
+from hybrid_sysid.runs.layout import RECORD, enclosing_run
+from hybrid_sysid.runs.reading import find_runs
 
 PROG = "hybrid-sysid-report"
 HELP = f"""{PROG}: rebuild the comparison table (summary.md, summary.csv) and figures of sweeps or runs from their
@@ -158,76 +150,21 @@ def _main(argv) -> int:
     for path in [*args.paths, *(p for group in args.merge for p in group)]:
         if not path.exists():
             return _error(str(UsageError("PATH", Shown(str(path)), "a run or sweep directory that exists")))
-        if not find_runs([path]):
+        if not find_runs(path):
             return _error(str(UsageError("PATH", Shown(str(path)), f"a directory with runs ({RECORD}) at or below it")))
     if args.notes is not None and not args.notes.is_file():
         return _error(str(UsageError("notes", Shown(str(args.notes)), "a markdown file that exists")))
     refused = _inside_a_run(args)
     if refused:
         return _error(refused)
-    bad, writer = 0, None
+    from hybrid_sysid.cli.report_files import write_report  # deferred
+
     try:
-        if args.results is None or args.out is not None:
-            out = args.out or (args.paths[0] if len(args.paths) == 1 else Path("report"))
-            writer = _writer_of(out, "PATH" if args.out is None else "out")
-            df, table = write_summary(
-                out,
-                paths=args.paths,
-                split=args.split,
-                metric=args.metric,
-                latex=args.latex,
-                compare=args.compare,
-                exclude=args.exclude,
-            )
-            print(to_markdown(table, compare=args.compare), end="")
-            written = ["summary.csv", "summary.md"] + ["summary.tex"] * args.latex
-            if args.reproduction:
-                print("\n" + write_reproduction(out, paths=args.paths), end="")
-                written.append("reproduction.md")
-            runs = df.drop_duplicates("run")
-            bad = int((runs.status != "completed").sum())
-            print(
-                f"{count(len(runs), 'run')}, {bad} failed or unreadable; wrote {out}/{', '.join(written)}, figures/",
-                file=sys.stderr,
-            )
-        if args.results is not None:
-            text, n, n_bad = write_results(
-                args.results,
-                args.paths,
-                command=shlex.join([PROG, *argv]),
-                split=args.split,
-                metric=args.metric,
-                compare=args.compare,
-                reproduction=args.reproduction,
-                notes=args.notes,
-                exclude=args.exclude,
-                merges=args.merge,
-            )
-            print(text, end="")
-            bad = max(bad, n_bad)
-            folder = args.results.parent if args.results.suffix == ".md" else args.results
-            print(
-                f"{count(n, 'run')}, {n_bad} failed or unreadable; wrote {args.results} and {folder / 'figures'}/",
-                file=sys.stderr,
-            )
-        if args.run_figures:
-            drawn = draw_run_figures(args.paths, args.exclude)
-            print(f"drew the figures of {count(drawn, 'run')} (figures/ in each run directory)", file=sys.stderr)
+        return write_report(args, shlex.join([PROG, *argv]))
     except ValueError as exc:  # e.g. compare= naming a key that is not swept
         return _error(str(exc))
     except OSError as exc:  # e.g. out= on a read-only file system: the runs themselves are untouched
         return _error(f"cannot write the report: {type(exc).__name__}: {exc}")
-    finally:
-        if writer is not None:
-            writer.release()
-    return 1 if bad else 0
-
-
-def _writer_of(out: Path, key: str):
-    """The one-writer lock of ``out`` when a run or sweep of hybrid-sysid writes there (its lock file is there),
-    taken for the report's own writing: a sweep still running is refused (a table of its first jobs would race
-    with its own summary, or replace it)."""
-    return hold_for_writing(out, key) if (Path(out) / WRITER_LOCK).is_file() else None
 
 
 def _inside_a_run(args) -> str | None:
@@ -243,19 +180,3 @@ def _inside_a_run(args) -> str | None:
                 UsageError(key, Shown(str(value)), f"it lies inside the run or sweep directory {holder}; {allowed}")
             )
     return None
-
-
-def draw_run_figures(paths, exclude=()) -> int:
-    """Each completed run's figures under ``paths`` (but runs matching ``exclude``); the number drawn. A run
-    without predictions (e.g. a chain's parent) has nothing to draw and is skipped, with a progress line every
-    ten runs on stderr."""
-    root, df = load_runs(paths, exclude)
-    runs = df[df.status == "completed"].drop_duplicates("run").run
-    drawn = 0
-    for i, name in enumerate(runs, start=1):
-        if (root / name / PREDICTIONS).is_file():
-            write_run_figures(root / name)
-            drawn += 1
-        if i % 10 == 0:
-            print(f"run figures: {i} / {len(runs)} runs", file=sys.stderr, flush=True)
-    return drawn

@@ -21,6 +21,7 @@ from hybrid_sysid.training.tracking.naming import Naming, experiment_name, objec
 
 log = logging.getLogger("hybrid_sysid")
 SWEEP_RUN = "sweep summary"  # the MLflow run holding a sweep's summary table and figures
+RUN_NAME = "mlflow.runName"  # the tag MLflow shows as a run's name (mlflow.utils.mlflow_tags.MLFLOW_RUN_NAME)
 SWEEP_ARTIFACTS = ("*.md", "*.csv", "*.tex", SWEEP_CONFIG, "optimization_results.yaml")
 _finished: dict[str, list[tuple[str, str]]] = {}  # run directory -> (tracking URI, MLflow run id) of its runs
 
@@ -137,8 +138,6 @@ def log_sweep(config: DictConfig, sweep_dir: Path) -> None:
 
 
 def _log_sweep(config: DictConfig, lg: DictConfig, sweep_dir: Path) -> None:
-    from mlflow.utils.mlflow_tags import MLFLOW_RUN_NAME  # deferred
-
     preset = OmegaConf.select(config, "hydra.runtime.choices.experiment", default=None)
     name = str(lg.experiment_name) if lg.get("experiment_name") is not None else experiment_name(preset, sweep_dir)
     uri, location = str(lg.tracking_uri), lg.get("artifact_location")
@@ -154,7 +153,7 @@ def _log_sweep(config: DictConfig, lg: DictConfig, sweep_dir: Path) -> None:
     if previous:  # a re-run sweep: the same run, its files replaced
         run_id = previous[0].info.run_id
     else:
-        run_id = client.create_run(exp_id, tags={MLFLOW_RUN_NAME: SWEEP_RUN, "kind": "sweep", **tags}).info.run_id
+        run_id = client.create_run(exp_id, tags={RUN_NAME: SWEEP_RUN, "kind": "sweep", **tags}).info.run_id
     for pattern in SWEEP_ARTIFACTS:
         for path in sorted(sweep_dir.glob(pattern)):
             client.log_artifact(run_id, str(path))
