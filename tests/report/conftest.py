@@ -2,7 +2,7 @@ from pathlib import Path
 
 import pytest
 
-from hybrid_sysid.report import plotting, run_figures, sweep_figures
+from hybrid_sysid.report import anchored_figure, plotting, run_figures, sweep_figures, transfer_figure, tuning
 
 from helpers.evaluation_fakes import make_sweep
 
@@ -24,6 +24,6 @@ def drawn(monkeypatch) -> dict:
         real(fig, path, title)
         figures[Path(path).name.lstrip(".").split(".")[0]] = fig
 
-    for module in (plotting, run_figures, sweep_figures):
+    for module in (plotting, run_figures, sweep_figures, anchored_figure, transfer_figure, tuning):
         monkeypatch.setattr(module, "save_figure", save)
     return figures
