@@ -17,6 +17,8 @@ from hybrid_sysid.physics.faults import (
     Fault,
     Gain,
     Setting,
+    fix_code,
+    fixes,
     register,
     register_installed,
     registered,
@@ -61,6 +63,9 @@ def test_an_evaluation_may_change_every_fault_setting():
 
 def test_each_fault_names_a_classical_fix_the_fixed_fits_know():
     assert {f.fix for f in registered()} <= set(FIXES)
+    # the package's own fixes are its faults' code, in the order core.options lists them
+    assert fixes() == FIXES
+    assert [fix_code(name).name for name in FIXES[1:]] == list(FIXES[1:]) and fix_code("none") is None
 
 
 class Again(Fault):

@@ -24,12 +24,12 @@ from collections.abc import Mapping
 import numpy as np
 
 from hybrid_sysid.baselines.fixes import fit_fixed
-from hybrid_sysid.core.checks import ConfigError, bad, check_choice, check_number
-from hybrid_sysid.core.options import FIXES
+from hybrid_sysid.core.checks import ConfigError, bad, check_number
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.eiv import P_HI, P_LO, eiv_model, fit_eiv, log_p_prior
-from hybrid_sysid.physics.eiv.fit import skew_samples
+from hybrid_sysid.physics.eiv.fit import fix_samples
+from hybrid_sysid.physics.faults import fix_code
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 from hybrid_sysid.physics.seat_fit import fit_windows
 
@@ -84,7 +84,7 @@ class ErrorsInVariablesFit:
         skew_max: float = 0.02,
     ):
         self.noise_ratio = check_number("noise_ratio", noise_ratio, 0, 1e6, unit="sigma_body^2 / sigma_seat^2")
-        check_choice("fix", fix, FIXES)
+        fix_code(fix)  # a registered fix (physics.faults.fixes), else a ConfigError naming fix
         self.fix = fix
         self.skew_max = check_number("skew_max", skew_max, 0, unit="seconds")
         check_bandpass(low_hz, high_hz, taps, dt)
@@ -115,8 +115,9 @@ class ErrorsInVariablesFit:
         """The least-squares start's band-pass must leave enough samples of a window, and the skew fix's edges too
         (the fit would refuse each window only once the data are simulated)."""
         check_filter_fits(self.taps, window, "taps", "data.window")
-        if self.fix == "skew":
-            need = max(skew_samples(model, self.dt, self.skew_max) for model in ("discrete", "continuous"))
+        code = fix_code(self.fix)
+        if code is not None and any(code.eiv_edges(self.skew_max, self.dt)):  # the skew's: its advance's reach
+            need = max(fix_samples(self.fix, model, self.dt, self.skew_max) for model in ("discrete", "continuous"))
             if window < need:
                 bad(
                     "skew_max",

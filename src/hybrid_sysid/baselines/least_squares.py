@@ -19,10 +19,11 @@ import numpy as np
 
 from hybrid_sysid.baselines.fixes import fit_fixed
 from hybrid_sysid.core.checks import bad, check_choice
-from hybrid_sysid.core.options import FILTERS, FIXES, SPANS, UNKNOWNS
+from hybrid_sysid.core.options import FILTERS, SPANS, UNKNOWNS
 from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation noise
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
+from hybrid_sysid.physics.faults import fix_code
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass, fir_valid
 
 _SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
@@ -91,8 +92,9 @@ class LeastSquaresFit:
         integrated noise (docs/baselines.md: how they were chosen).
     unknown "p": both p1 and p2 fitted; "m3": C3 and K3 known (``c3``, ``k3``, the car's), only m3 fitted,
         so p = (C3, K3) / m3 is one parameter (the paper's own premise).
-    fix: the classical fix of a recording fault (baselines.fixes: "gain", "skew", "hardening"), one more
-        parameter fitted with p; per band-passed window, both p unknown. ``skew_max``: the offsets "skew" tries.
+    fix: the classical fix of a recording fault (baselines.fixes: "gain", "skew", "hardening" or a registered
+        fault's own, physics.faults.fixes), one more parameter fitted with p; per band-passed window, both p
+        unknown. ``skew_max``: the offsets "skew" tries.
     """
 
     fit_seconds = 0.0  # wall time spent in predict_split: a baseline's only work (each instance its own)
@@ -114,7 +116,7 @@ class LeastSquaresFit:
         check_choice("span", span, SPANS)
         check_choice("filter", filter, FILTERS)
         check_choice("unknown", unknown, UNKNOWNS)
-        check_choice("fix", fix, FIXES)
+        fix_code(fix)  # a registered fix (physics.faults.fixes), else a ConfigError naming fix
         if fix != "none" and (span, filter, unknown) != ("window", "bandpass", "p"):
             bad("fix", fix, "none unless span = window, filter = bandpass and unknown = p (a fix is per window)")
         for key, value in (("c3", c3), ("k3", k3)) if unknown == "m3" else ():

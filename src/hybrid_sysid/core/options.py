@@ -32,7 +32,9 @@ PROFILERS = ("simple", "advanced")
 SPANS = ("window", "series")
 FILTERS = ("none", "bandpass")
 UNKNOWNS = ("p", "m3")
-FIXES = ("none", "gain", "skew", "hardening")  # the classical fix of a recording fault (baselines.fixes)
+# the package's own classical fixes of a recording fault; what a fit accepts is the registry's, these and a
+# registered fault's own (physics.faults.fixes, which checks baseline.fix)
+FIXES = ("none", "gain", "skew", "hardening")
 # the Lightning classes a config may name by _target_ (hybrid_sysid.config.targets): loggers and callbacks
 LOGGERS = ("CSVLogger", "TensorBoardLogger", "MLFlowLogger")
 CALLBACKS = ("EarlyStopping", "ModelSummary", "RichModelSummary", "RichProgressBar", "TQDMProgressBar")

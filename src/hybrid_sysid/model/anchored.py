@@ -18,9 +18,10 @@ from torch import nn
 
 from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
 from hybrid_sysid.core.checks import bad, check_choice, check_number
-from hybrid_sysid.core.options import FIXES, MEASUREMENTS
+from hybrid_sysid.core.options import MEASUREMENTS
 from hybrid_sysid.data.spec import MIN_FILTERED
 from hybrid_sysid.model.networks import FastCNN
+from hybrid_sysid.physics.faults import fix_code
 from hybrid_sysid.physics.filters import filter_taps
 from hybrid_sysid.physics.seat_fit import SeatFit, fit_windows
 
@@ -52,7 +53,7 @@ class AnchoredCNN(FastCNN):
         ratio (physics/eiv/), which is what the gate's weight assumes. The constructor's default is "ls": a
         saved config written before the argument existed was trained with it. conf/model/anchored.yaml sets
         "eiv".
-    fix: the classical fix of the fault the config simulates (``${fault_fix:}``, core.options.FIXES), handed to
+    fix: the classical fix of the fault the config simulates (``${fault_fix:}``, physics.faults.fixes), handed to
         the errors-in-variables fit as its ``fix`` when it is not "none"; the least-squares anchor ignores it.
 
     prior: None, or the simulator's draws of the seat as the MAP baseline takes them (``PRIOR_KEYS``; conf/model/
@@ -91,7 +92,7 @@ class AnchoredCNN(FastCNN):
         super().__init__(p_min, p_max, **cnn)
         check_choice("measurement", measurement, MEASUREMENTS)
         check_choice("anchor", anchor, ANCHORS)
-        check_choice("fix", fix, FIXES)
+        fix_code(fix)  # a registered fix (physics.faults.fixes), else a ConfigError naming fix
         check_number("tau_min", tau_min, 0, 1, low_open=True)
         if not (isinstance(tau_max, (int, float)) and tau_min < tau_max <= 10):
             bad("tau_max", tau_max, f"must lie in (tau_min = {tau_min:g}, 10]")

@@ -1,71 +1,22 @@
-"""The criterion of a fix (physics.eiv.faults): V in theta = (log p1, log p2, eta) with its derivatives, and the
-skew's advance of the body channel by a Kaiser-windowed sinc."""
+"""The criterion of a fix (physics.eiv.faults): V in theta = (log p1, log p2, eta) with its derivatives, the fault
+entering through its fix's body factor (``Fix.body_factor``; the skew's advance lies in physics.faults.skew)."""
 
 from __future__ import annotations
 
-from functools import lru_cache
-
 import numpy as np
-from scipy import special
 
 from hybrid_sysid.physics.eiv.criterion import re_sum
 from hybrid_sysid.physics.eiv.matrices import schur
-from hybrid_sysid.physics.sensors import BETA_MAX, BETA_PER_TAP
+from hybrid_sysid.physics.faults.fix import Fix
+from hybrid_sysid.physics.faults.skew import SKEW_HALF_WIDTH, abs2, advance, advance_kernel, unit_powers
 
-SKEW_HALF_WIDTH = 8  # the skew fix's advance: a Kaiser-windowed sinc of 2 x 8 + 2 taps (physics.eiv.faults)
-
-
-def abs2(x):
-    return x.real**2 + x.imag**2
+__all__ = ["SKEW_HALF_WIDTH", "abs2", "advance", "advance_kernel", "body_factor", "evaluate_fault", "unit_powers"]
 
 
-@lru_cache(maxsize=16)
-def unit_powers(n_samples: int, low: int, high: int) -> np.ndarray:
-    """z^p on the half spectrum for p = low..high: (high - low + 1, K)."""
-    k = np.arange(n_samples // 2 + 1)
-    powers = np.exp(2j * np.pi * np.outer(np.arange(low, high + 1), k) / n_samples)
-    powers.flags.writeable = False
-    return powers
-
-
-def advance_kernel(u, half_width: int):
-    """The advance's interpolation kernel at offsets u and its first two derivatives: the Kaiser-windowed sinc of
-    physics.sensors, zero for |u| >= half_width + 1, where the sinc itself vanishes as a tap enters or leaves, so
-    the advance is continuous in the delay. The derivatives by central differences: the kernel is analytic within
-    its support, and their error (1e-10, 1e-8) is far below what the Newton steps need."""
-    support = half_width + 1
-    beta = min(BETA_PER_TAP * half_width, BETA_MAX)
-
-    def k(v):
-        t = np.sqrt(np.clip(1.0 - (v / support) ** 2, 0.0, None))
-        return np.where(np.abs(v) < support, np.sinc(v) * special.i0(beta * t), 0.0) / special.i0(beta)
-
-    e1, e2 = 1e-5, 1e-4
-    k0 = k(u)
-    return k0, (k(u + e1) - k(u - e1)) / (2.0 * e1), (k(u + e2) - 2.0 * k0 + k(u - e2)) / (e2 * e2)
-
-
-def advance(delay, n_samples: int, half_width: int):
-    """H_k = sum_p K(p - d) z_k^p over the taps |p - d| < half_width + 1, and its first two derivatives in d, on
-    the half spectrum (n, K): the body channel advanced by d samples (the skew fix)."""
-    whole = np.floor(delay)
-    low, high = int(whole.min()) - half_width, int(whole.max()) + half_width + 1
-    taps = advance_kernel(np.arange(low, high + 1) - delay[:, None], half_width)
-    h = np.concatenate(taps) @ unit_powers(n_samples, low, high)
-    n = len(delay)
-    return h[:n], -h[n : 2 * n], h[2 * n :]
-
-
-def body_factor(fix, eta, n_samples):
+def body_factor(fix: Fix, eta, n_samples):
     """The body term's factor phi (A S - phi B U) with its first two derivatives in the fault's parameter, and
-    psi = |phi|^2 (W = |A|^2 + lambda psi |B|^2) with its two: (n, K) or (n, 1) arrays, or scalars."""
-    if fix == "gain":
-        g = np.exp(eta)[:, None]
-        return g, g, g, g * g, 2.0 * g * g, 4.0 * g * g
-    if fix == "skew":
-        h, h1, h2 = advance(eta, n_samples, SKEW_HALF_WIDTH)
-        return h, h1, h2, abs2(h), 2.0 * (h.conj() * h1).real, 2.0 * (abs2(h1) + (h.conj() * h2).real)
-    return 1.0, 0.0, 0.0, 1.0, 0.0, 0.0
+    psi = |phi|^2 (W = |A|^2 + lambda psi |B|^2) with its two: the fix's (``Fix.body_factor``)."""
+    return fix.body_factor(eta, n_samples)
 
 
 def evaluate_fault(theta, S, U, X, fix, grid, lam, n_samples, derivatives=True, XA=None):

@@ -26,14 +26,14 @@ from typing import NamedTuple
 
 import numpy as np
 
-from hybrid_sysid.core.checks import bad, check_choice, check_int, check_number
-from hybrid_sysid.core.options import FIXES
+from hybrid_sysid.core.checks import bad, check_int, check_number
 from hybrid_sysid.physics.eiv.criterion import evaluate_criterion
-from hybrid_sysid.physics.eiv.fault_criterion import SKEW_HALF_WIDTH
-from hybrid_sysid.physics.eiv.faults import GAIN_BOX, fault_problem
+from hybrid_sysid.physics.eiv.faults import fault_problem
 from hybrid_sysid.physics.eiv.matrices import inverse_diagonal, positive
 from hybrid_sysid.physics.eiv.model import CHUNK, error_spectra, frequency_grid, setup_windows, transfer_polynomials
 from hybrid_sysid.physics.eiv.newton import MAX_ITER, TOL, minimise
+from hybrid_sysid.physics.faults.registry import fix_code
+from hybrid_sysid.physics.faults.skew import SkewFix
 
 P_LO = (0.5, 25.0)  # the default box of (p1, p2): wide around the seats' 2..40 1/s and 100..1500 1/s^2
 P_HI = (200.0, 6000.0)
@@ -68,14 +68,19 @@ def _box(p_lo, p_hi):
 
 def skew_edges(skew_max: float, dt: float) -> tuple[int, int]:
     """The skew fix's lead and lag samples at a window's ends: the advance's reach and its sinc's half width."""
-    reach = skew_max / dt
-    return int(np.floor(reach)) + SKEW_HALF_WIDTH + 1, int(np.ceil(reach)) + SKEW_HALF_WIDTH
+    return SkewFix().eiv_edges(skew_max, dt)
+
+
+def fix_samples(fix: str, model: str, dt: float, skew_max: float) -> int:
+    """The fewest samples a window needs for ``fix``: the transient's basis widened by the fix's edges, plus 4."""
+    code = fix_code(fix)
+    lead, lag = (0, 0) if code is None else code.eiv_edges(skew_max, dt)
+    return lead + lag + transfer_polynomials(model, dt).shape[1] - 1 + 4
 
 
 def skew_samples(model: str, dt: float, skew_max: float) -> int:
-    """The fewest samples a window needs for the skew fix: the transient's basis widened by its edges, plus 4."""
-    lead, lag = skew_edges(skew_max, dt)
-    return lead + lag + transfer_polynomials(model, dt).shape[1] - 1 + 4
+    """The fewest samples a window needs for the skew fix (``fix_samples``)."""
+    return fix_samples("skew", model, dt, skew_max)
 
 
 def fit_eiv(
@@ -103,12 +108,12 @@ def fit_eiv(
     p_lo, p_hi: the box (p1, p2) the fit stays in. prior: None (ML) or (mean (2,), cov (2, 2)) of log p, e.g. from
     ``log_p_prior``: the MAP fit, started from the ML one and with the ML fit's sigma^2.
     fix: "none", or the recording fault fitted with p as one more parameter (physics.eiv.faults): "gain"
-    (the ratio of the sensors' gains), "skew" (the body sensor's time offset, |tau| <= ``skew_max`` seconds) or
-    "hardening" (a hardening seat spring); the fit's se then includes that parameter's uncertainty, and
-    EivFit.fault holds its estimate.
+    (the ratio of the sensors' gains), "skew" (the body sensor's time offset, |tau| <= ``skew_max`` seconds),
+    "hardening" (a hardening seat spring) or a registered fault's own fix (physics.faults.fixes); the fit's se
+    then includes that parameter's uncertainty, and EivFit.fault holds its estimate.
     Float32 windows are taken in float64; a single window (N,) as (1, N). Returns EivFit.
     """
-    check_choice("fix", fix, FIXES)
+    code = fix_code(fix)
     skew_max = check_number("skew_max", skew_max, 0.0, unit="seconds")
     seat, body, good, grid, q = setup_windows(seat, body, dt, noise_ratio, model)
     max_iter = check_int("max_iter", max_iter, 1)
@@ -116,11 +121,11 @@ def fit_eiv(
     lo, hi = _box(p_lo, p_hi)
     n, N = seat.shape
     lam = float(noise_ratio)
-    if fix == "skew":  # the advance's circular edges: lead and lag samples at the window's ends (physics.eiv.faults)
-        lead, lag = skew_edges(skew_max, dt)
+    lead, lag = (0, 0) if code is None else code.eiv_edges(skew_max, dt)
+    if lead or lag:  # the skew's advance reaches across the window's ends: the transient widens (physics.eiv.faults)
         grid = frequency_grid(model, float(dt), N, lead, lag)
         if N < grid.basis.shape[1] + 4:
-            bad("seat", f"windows of {N} samples", f"at least {grid.basis.shape[1] + 4} samples for the skew fix")
+            bad("seat", f"windows of {N} samples", f"at least {grid.basis.shape[1] + 4} samples for the {fix} fix")
     dim = 2 if fix == "none" else 3
     dof = N - dim - grid.basis.shape[1]
     if p0 is None:
@@ -139,11 +144,7 @@ def fit_eiv(
         if dim == 3:  # no prior on the fault's parameter
             mean, prec = np.append(mean, 0.0), np.pad(prec, ((0, 1), (0, 1)))
     if dim == 3:
-        bound = {
-            "gain": np.log(GAIN_BOX),
-            "skew": (-skew_max / dt, skew_max / dt),
-            "hardening": (-np.inf, np.inf),  # per window: fault_problem
-        }[fix]
+        bound = code.eiv_bound(skew_max, dt)  # the hardening's: per window, in its own problem
         lo, hi = np.append(lo, bound[0]), np.append(hi, bound[1])
     out = _Results(n, fix != "none")
     ml = None if prior is None else _Results(n, fix != "none")
@@ -166,7 +167,7 @@ def fit_eiv(
                 theta, to_fault = theta0[rows], None
             else:
                 solve, theta, to_fault = fault_problem(
-                    fix, seat[rows], body[rows], theta0[rows], grid, lam, float(dt), model, lo, hi, max_iter, tol
+                    code, seat[rows], body[rows], theta0[rows], grid, lam, float(dt), model, lo, hi, max_iter, tol
                 )
             theta, V, h, conv = solve(theta)
             kappa = V / dof  # N sigma^2: V's scale in the likelihood

@@ -5,13 +5,16 @@ schema and the docs table. Plain numpy."""
 
 from hybrid_sysid.physics.faults.base import Fault, Setting, value_of
 from hybrid_sysid.physics.faults.chain import FaultDraws, SensorFaults, apply
+from hybrid_sysid.physics.faults.fix import FaultProblem, Fix, lstsq_columns
 from hybrid_sysid.physics.faults.gain import Gain
 from hybrid_sysid.physics.faults.hardening import Hardening
 from hybrid_sysid.physics.faults.lowpass import Lowpass
 from hybrid_sysid.physics.faults.registry import (
     GROUP,
     fault,
+    fix_code,
     fix_for,
+    fixes,
     register,
     register_installed,
     registered,
@@ -31,11 +34,16 @@ __all__ = [
     "GROUP",
     "Fault",
     "FaultDraws",
+    "FaultProblem",
+    "Fix",
     "SensorFaults",
     "Setting",
     "apply",
     "fault",
+    "fix_code",
     "fix_for",
+    "fixes",
+    "lstsq_columns",
     "register",
     "register_installed",
     "registered",

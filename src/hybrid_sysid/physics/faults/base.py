@@ -1,7 +1,8 @@
 """What a recording fault or model mismatch declares (docs/faults.md, "Adding a fault").
 
 A fault is one subclass of ``Fault`` in one file: its settings (the config keys, their defaults, ranges and one-line
-meaning), how each recording draws it, how it acts on the recorded seat and body channels, and its classical fix.
+meaning), how each recording draws it, how it acts on the recorded seat and body channels, and its classical fix
+(``fix``; its code, a ``physics.faults.fix.Fix``, in ``fix_code``).
 The registry (``physics.faults.registry``) hands every fault to the simulator, the cache key, the checks, the config
 schema and the docs table, so none of them names a fault. Plain numpy.
 """
@@ -14,6 +15,7 @@ from typing import Any, List, Optional
 import numpy as np
 
 from hybrid_sysid.core.checks import check_number
+from hybrid_sysid.physics.faults.fix import Fix
 
 
 @dataclass(frozen=True)
@@ -75,7 +77,10 @@ class Fault:
 
     name: str = ""  # the registry's key, as in fault=<name>
     settings: tuple[Setting, ...] = ()
-    fix: str = "none"  # its classical fix (core.options.FIXES), what estimator=ls_fix / eiv_fix fit with p
+    fix: str = "none"  # the name of its classical fix (baseline.fix), what estimator=ls_fix / eiv_fix fit with p
+    # the fix's code (physics.faults.fix) when this file defines it, named ``fix``; None when the fault takes
+    # another's (the low-pass takes the skew's) or has none
+    fix_code: Fix | None = None
     fix_rank: int = 100  # with several faults on, ``${fault_fix:}`` takes the fix of the lowest rank
     order: int = 100  # where it acts in a sensor's chain: lower first (low-pass 10, gain 20, skew 30)
     compiled: bool = False  # physics.compiled_sensors' kernel applies it; else the dataset applies ``apply``

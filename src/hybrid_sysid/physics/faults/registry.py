@@ -1,5 +1,6 @@
 """The registry of faults: every fault the simulator, the cache key, the checks, the config schema, the classical
-fixes' choice and the docs table know of, in the order they were registered (the order each recording draws them).
+fixes (their names and their code) and the docs table know of, in the order they were registered (the order each
+recording draws them).
 
 The package's own register in ``physics.faults``; an installed package's, through an entry point of the group
 ``hybrid_sysid.faults`` whose value names its Fault subclass, at the registry's first reading (installing a package
@@ -12,8 +13,9 @@ from __future__ import annotations
 
 from importlib.metadata import entry_points
 
-from hybrid_sysid.core.checks import ConfigError
+from hybrid_sysid.core.checks import ConfigError, check_choice
 from hybrid_sysid.physics.faults.base import Fault, Setting
+from hybrid_sysid.physics.faults.fix import Fix
 
 GROUP = "hybrid_sysid.faults"  # the entry point group of installed packages' faults
 _FAULTS: dict[str, Fault] = {}
@@ -33,8 +35,18 @@ def register(fault):
     if instance.name in _FAULTS or clash:
         what = f"the config key {clash[0]} of fault {taken[clash[0]]!r}" if clash else "a fault's name"
         raise ValueError(f"fault {instance.name!r}: {what} is registered already")
+    _check_fix(instance)
     _FAULTS[instance.name] = instance
     return fault
+
+
+def _check_fix(instance: Fault) -> None:
+    """A fault's own fix is a Fix named as its ``fix`` and not yet registered; a fix it takes is registered."""
+    own, named = instance.fix_code, [f.fix_code.name for f in _FAULTS.values() if f.fix_code is not None]
+    if own is not None and (not isinstance(own, Fix) or own.name != instance.fix or own.name in named + ["none"]):
+        raise TypeError(f"fault {instance.name!r}: fix_code a Fix named as its fix, {instance.fix!r}, and new")
+    if own is None and instance.fix not in ["none", *named]:
+        raise TypeError(f"fault {instance.name!r}: fix {instance.fix!r} is no registered fault's fix_code")
 
 
 def unregister(name: str) -> None:
@@ -75,10 +87,21 @@ def fault(name: str) -> Fault:
 
 
 def fix_for(sensor, car) -> str:
-    """The classical fix (core.options.FIXES) of the faults a config simulates: that of the active fault of the
+    """The classical fix (``fixes``) of the faults a config simulates: that of the active fault of the
     lowest ``fix_rank``; "none" with none on. ``sensor``, ``car``: the sections, as objects or mappings."""
     on = [f for f in registered() if f.active(car if f.settings[0].section == "car" else sensor)]
     return min(on, key=lambda f: f.fix_rank).fix if on else "none"
+
+
+def fixes() -> tuple[str, ...]:
+    """The fixes a fit may take (baseline.fix): "none", then each registered fault's own, in registration order."""
+    return ("none", *(f.fix_code.name for f in registered() if f.fix_code is not None))
+
+
+def fix_code(name: str, key: str = "fix") -> Fix | None:
+    """The code of the fix ``name`` (None for "none"); a one-line ConfigError naming ``key`` for one not registered."""
+    check_choice(key, name, fixes())
+    return next((f.fix_code for f in registered() if f.fix_code is not None and f.fix_code.name == name), None)
 
 
 def _cell(value) -> str:

@@ -2,16 +2,26 @@
 
 Conventions: a delay of d samples gives out[k] = x(k - d), so d > 0 is a late sensor; a skew tau seconds is a
 delay of tau / dt samples of the body channel against the seat channel (docs/faults.md, "Skew").
+
+Its fix, "skew" (``SkewFix``): least squares moves the body channel back by each offset of a grid and keeps the
+offset whose fit leaves the least residual; the likelihood advances the body by a Kaiser-windowed sinc whose
+delay is fitted with p (physics.eiv.faults explains the edges and the accuracy).
 """
 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
+from scipy import special
 
 from hybrid_sysid.core.checks import bad
 from hybrid_sysid.physics.faults.base import Fault, Setting, value_of
+from hybrid_sysid.physics.faults.fix import Fix
+from hybrid_sysid.physics.filters import fir_valid
+from hybrid_sysid.physics.integrate import relative_states
+from hybrid_sysid.physics.seat_fit import fit_seat
 
 # Kaiser window of the fractional-delay interpolator: beta grows with the half width up to where rounding, not
 # the window, sets the error (docs/faults.md: the measured accuracy against the analytic shift)
@@ -20,6 +30,33 @@ BETA_MAX = 40.0
 # the dataset's interpolator: 25 taps, within ~1.2e-8 of the signal's peak up to half the Nyquist frequency
 # (docs/faults.md), below the float32 rounding of the stored channels (6e-8 of a value)
 DELAY_HALF_WIDTH = 12
+SKEW_HALF_WIDTH = 8  # the likelihood's advance: a Kaiser-windowed sinc of 2 x 8 + 2 taps (physics.eiv.faults)
+SKEW_STEP = 1.0  # samples between the offsets of the likelihood's coarse search over [-skew_max, skew_max]
+
+
+class SkewFix(Fix):
+    name = "skew"
+
+    def least_squares(self, seat, body, rel_vel, rel_disp, dt, measurement, fir, skew_max):
+        return fit_skew(seat, body, dt, measurement, fir, skew_max)
+
+    def eiv_bound(self, skew_max, dt):
+        return -skew_max / dt, skew_max / dt
+
+    def eiv_edges(self, skew_max, dt):
+        """The advance's reach and its sinc's half width."""
+        reach = skew_max / dt
+        return int(np.floor(reach)) + SKEW_HALF_WIDTH + 1, int(np.ceil(reach)) + SKEW_HALF_WIDTH
+
+    def eiv_starts(self, lo, hi):
+        return np.linspace(lo[2], hi[2], 2 * int(np.ceil(hi[2] / SKEW_STEP)) + 1)
+
+    def body_factor(self, eta, n_samples):
+        h, h1, h2 = advance(eta, n_samples, SKEW_HALF_WIDTH)
+        return h, h1, h2, abs2(h), 2.0 * (h.conj() * h1).real, 2.0 * (abs2(h1) + (h.conj() * h2).real)
+
+    def eiv_fault(self, eta, dt):
+        return eta * dt
 
 
 class Skew(Fault):
@@ -36,7 +73,8 @@ class Skew(Fault):
             keyed_at_default=True,
         ),
     )
-    fix = "skew"  # the body's offset fitted with p (baselines.fixes.fit_skew, physics.eiv "skew")
+    fix = "skew"  # the body's offset fitted with p
+    fix_code = SkewFix()
     fix_rank = 20
     order = 30
     compiled = True
@@ -101,3 +139,93 @@ def fractional_delay(x: np.ndarray, delay, half_width: int = 32) -> np.ndarray:
     for q in range(2 * half_width + 1):
         out += taps[:, 2 * half_width - q, None] * shifted[:, q : q + length]
     return out
+
+
+def fit_skew(seat, body, dt: float, measurement: str, fir: np.ndarray, skew_max: float, grid: int = 21) -> np.ndarray:
+    """p (n, 2) with the body sensor's time offset unknown, searched per window over ``grid`` offsets in
+    [-skew_max, skew_max] seconds, then refined by the parabola through the best offset and its neighbours.
+
+    The body window is moved back by each offset (``fractional_delay``) and re-integrated from the window's start;
+    the delay's inexact edge samples only shift the integrals by a constant and a ramp at the start, which the
+    band-pass removes, and lie in the part 'valid' drops at the end."""
+    seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
+    n = len(seat)
+    offsets = np.linspace(-skew_max, skew_max, grid) if skew_max > 0 else np.zeros(1)
+    seat_f = fir_valid(seat, fir)  # the fitted signal does not move: filtered once, not once per offset
+
+    def fit_at(moved: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        rel_vel, rel_disp = relative_states(seat, moved, dt, measurement)
+        fit = fit_seat(seat_f, fir_valid(rel_vel, fir), fir_valid(rel_disp, fir))
+        return fit.p, np.where(np.isfinite(fit.unexplained), fit.unexplained, np.inf)
+
+    rss = np.stack([fit_at(moved)[1] for moved in delayed_copies(body, -offsets / dt)], axis=1)  # (n, grid)
+    best = np.argmin(rss, axis=1)
+    delay = offsets[best]
+    inner = (best > 0) & (best < len(offsets) - 1)
+    if inner.any():  # the vertex of the parabola through the best three, within one grid step
+        i = best[inner]
+        r = np.arange(n)[inner]
+        lo, mid, hi = rss[r, i - 1], rss[r, i], rss[r, i + 1]
+        curve = lo - 2 * mid + hi
+        shift = np.where(curve > 0, 0.5 * (lo - hi) / np.where(curve > 0, curve, 1.0), 0.0)
+        delay[inner] += np.clip(shift, -1, 1) * (offsets[1] - offsets[0])
+    return fit_at(fractional_delay(body, -delay / dt))[0]
+
+
+def delayed_copies(x: np.ndarray, delays: np.ndarray, half_width: int = 32):
+    """``fractional_delay(x, d)`` for each d of ``delays`` (samples; one delay for every row), as a generator.
+
+    Every row shares the delay, so the taps are one filter: x's spectrum is taken once and each copy is one
+    product and one inverse FFT, where fractional_delay sums 2 half_width + 1 shifted arrays per call. With the
+    seat filtered once, it makes the skew search faster (benchmarks/README.md, "Summary")."""
+    whole, taps = delay_taps(delays, half_width)
+    pad = half_width + int(np.abs(whole).max(initial=0))
+    padded = np.pad(x, ((0, 0), (pad, pad)), mode="edge")
+    n_fft = 1 << int(np.ceil(np.log2(padded.shape[1] + 2 * half_width)))  # a linear, not circular, convolution
+    spectrum = np.fft.rfft(padded, n_fft, axis=1)
+    length = x.shape[1]
+    for w, h in zip(whole, taps):
+        # fractional_delay's out[k] = sum_j h[j] padded[pad - w - half_width + k + 2 half_width - j]
+        full = np.fft.irfft(spectrum * np.fft.rfft(h, n_fft), n_fft, axis=1)
+        yield full[:, pad - w + half_width : pad - w + half_width + length]
+
+
+def abs2(x):
+    return x.real**2 + x.imag**2
+
+
+@lru_cache(maxsize=16)
+def unit_powers(n_samples: int, low: int, high: int) -> np.ndarray:
+    """z^p on the half spectrum for p = low..high: (high - low + 1, K)."""
+    k = np.arange(n_samples // 2 + 1)
+    powers = np.exp(2j * np.pi * np.outer(np.arange(low, high + 1), k) / n_samples)
+    powers.flags.writeable = False
+    return powers
+
+
+def advance_kernel(u, half_width: int):
+    """The advance's interpolation kernel at offsets u and its first two derivatives: the Kaiser-windowed sinc of
+    ``delay_taps``, zero for |u| >= half_width + 1, where the sinc itself vanishes as a tap enters or leaves, so
+    the advance is continuous in the delay. The derivatives by central differences: the kernel is analytic within
+    its support, and their error (1e-10, 1e-8) is far below what the Newton steps need."""
+    support = half_width + 1
+    beta = min(BETA_PER_TAP * half_width, BETA_MAX)
+
+    def k(v):
+        t = np.sqrt(np.clip(1.0 - (v / support) ** 2, 0.0, None))
+        return np.where(np.abs(v) < support, np.sinc(v) * special.i0(beta * t), 0.0) / special.i0(beta)
+
+    e1, e2 = 1e-5, 1e-4
+    k0 = k(u)
+    return k0, (k(u + e1) - k(u - e1)) / (2.0 * e1), (k(u + e2) - 2.0 * k0 + k(u - e2)) / (e2 * e2)
+
+
+def advance(delay, n_samples: int, half_width: int):
+    """H_k = sum_p K(p - d) z_k^p over the taps |p - d| < half_width + 1, and its first two derivatives in d, on
+    the half spectrum (n, K): the body channel advanced by d samples (the skew fix)."""
+    whole = np.floor(delay)
+    low, high = int(whole.min()) - half_width, int(whole.max()) + half_width + 1
+    taps = advance_kernel(np.arange(low, high + 1) - delay[:, None], half_width)
+    h = np.concatenate(taps) @ unit_powers(n_samples, low, high)
+    n = len(delay)
+    return h[:n], -h[n : 2 * n], h[2 * n :]
