@@ -136,3 +136,31 @@ def test_an_older_progress_file_falls_back_on_elapsed_per_job(tmp_path):
     header, done = count_done(tmp_path, 4)
     ret = SimpleNamespace(overrides=["seed=1"], return_value={"status": "completed"})
     assert done == 2 and job_line(header, done, 4, ret, 20.0, now=60.0).endswith("sweep 1:00, about 3:30 left")
+
+
+def test_a_resumed_sweep_times_a_kind_by_its_completed_jobs_records():
+    """A sweep of networks (300 s of work) and baselines (3 s), re-run after its first networks completed: they
+    end at once, and the networks still waiting must be timed by those records, not by the baselines that ran
+    here. The truth: the waiting jobs' times (their records' 300 s, the baselines' 5 s) laid on the two workers."""
+    kinds = ["net"] * 6 + ["ls"] * 6
+    header = {"jobs": 12, "start": 0.0, "at_once": 2, "kinds": kinds}
+    events, t = [], 0.0
+    for num in (0, 1):  # completed before: their records give 300 s of work, they end in 0.2 s
+        events += [
+            {"start": num, "t": t, "pid": 1},
+            {"end": num, "t": t + 0.2, "seconds": 0.2, "cold": num == 0, "pid": 1, "work": 300.0, "ok": True},
+        ]
+        t += 0.2
+    for num in (6, 7):  # two baselines run here, on two warm workers
+        events += [{"start": num, "t": t, "pid": 1 + num % 2}]
+    for num in (6, 7):
+        events += [
+            {"end": num, "t": t + 5.0, "seconds": 5.0, "cold": False, "pid": 1 + num % 2, "work": 3.0, "ok": True}
+        ]
+    now = t + 5.0
+    seconds, untimed = estimate(header, events, now)
+    # 4 networks and 4 baselines wait for 2 workers: 2 x 300 s + 2 x 5 s each
+    truth = 2 * 300.0 + 2 * 5.0
+    assert untimed == 0 and abs(seconds - truth) <= WITHIN * truth, (seconds, truth)
+    # without the records' times the networks would count at the baselines' 5 s: far below the truth
+    assert seconds > 10 * 2 * 5.0

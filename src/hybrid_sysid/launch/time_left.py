@@ -11,8 +11,9 @@ wrong, and each has its answer here:
 - Parallel jobs. The first job to end is one of a wave that ends together; n at a time, the remaining jobs
   are laid on n workers, each next job on the first worker free, after what the running ones still need.
 - Jobs of different kinds (baselines take seconds, networks minutes). A job's kind is its swept values but the
-  seed; a kind's time is the mean of its ended jobs. A kind not timed yet counts at the mean of those timed,
-  and the line says how many jobs that guess covers.
+  seed; a kind's time is the mean of its ended jobs. In a re-run sweep, a kind whose jobs only ended at once
+  (completed before) takes the work their records give. A kind not timed yet counts at the mean of those
+  timed, and the line says how many jobs that guess covers.
 """
 
 from __future__ import annotations
@@ -101,8 +102,6 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
             if e["end"] not in ends or e.get("seconds") is not None:  # the job's own entry, not the parent's
                 ends[e["end"]] = e
     timed = _timed(ends, _cycles(events))
-    if not jobs or not timed:
-        return None
 
     def kind(num) -> str:
         return kinds[num] if isinstance(num, int) and 0 <= num < len(kinds) else ""
@@ -111,7 +110,16 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     for num, t in timed.items():
         by_kind.setdefault(kind(num), []).append(t)
     means = {k: _mean(v) for k, v in by_kind.items()}
-    mean = _mean(list(timed.values()))
+    # a re-run sweep's completed jobs end at once, but their records say what a job of their kind took: that
+    # times a kind none of whose jobs has run here yet (a resumed sweep of networks and baselines mixed)
+    recorded: dict[str, list] = {}
+    for num, e in ends.items():
+        if num not in timed and e.get("ok", True) and e.get("work") is not None and kind(num) not in means:
+            recorded.setdefault(kind(num), []).append(float(e["work"]))
+    means.update({k: statistics.fmean(v) for k, v in recorded.items()})
+    if not jobs or not means:
+        return None
+    mean = _mean(list(timed.values())) if timed else statistics.fmean(means.values())
     untimed = 0
 
     def expected(num) -> float:
