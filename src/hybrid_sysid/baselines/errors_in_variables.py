@@ -24,11 +24,12 @@ from collections.abc import Mapping
 import numpy as np
 
 from hybrid_sysid.baselines.fixes import fit_fixed
-from hybrid_sysid.core.checks import ConfigError, bad, check_number
+from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.eiv import P_HI, P_LO, eiv_model, fit_eiv, log_p_prior
-from hybrid_sysid.physics.eiv.fit import fix_samples
+from hybrid_sysid.physics.eiv.fit import check_skew_max, fix_samples
+from hybrid_sysid.physics.eiv.model import check_noise_ratio
 from hybrid_sysid.physics.faults import fix_code
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
 from hybrid_sysid.physics.seat_fit import fit_windows
@@ -60,7 +61,7 @@ def _kept(out, p0: np.ndarray, se0: np.ndarray, guarded: bool = False) -> tuple[
 class ErrorsInVariablesFit:
     """The errors-in-variables ML (or MAP) estimate of (p1, p2) per evaluation window, scored like a network.
 
-    noise_ratio: sigma_body^2 / sigma_seat^2, >= 0 (0: output error, the body channel taken as exact).
+    noise_ratio: sigma_body^2 / sigma_seat^2 in [0, 1e6] (0: output error, the body channel taken as exact).
     prior: None (maximum likelihood), or the simulator's draws of the seat as a dict of ``PRIOR_KEYS`` (conf/baseline/
         eiv_map.yaml fills it from the data and car sections): the fit is then the MAP estimate with the Gaussian in
         log p of those draws' moments, and sigma from the likelihood fit's residual.
@@ -83,10 +84,10 @@ class ErrorsInVariablesFit:
         fix: str = "none",
         skew_max: float = 0.02,
     ):
-        self.noise_ratio = check_number("noise_ratio", noise_ratio, 0, 1e6, unit="sigma_body^2 / sigma_seat^2")
+        self.noise_ratio = check_noise_ratio(noise_ratio)  # physics.eiv's checks, at construction: before any work
         fix_code(fix)  # a registered fix (physics.faults.fixes), else a ConfigError naming fix
         self.fix = fix
-        self.skew_max = check_number("skew_max", skew_max, 0, unit="seconds")
+        self.skew_max = check_skew_max(skew_max)
         check_bandpass(low_hz, high_hz, taps, dt)
         self.dt, self.taps = float(dt), int(taps)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt)

@@ -66,6 +66,12 @@ def _box(p_lo, p_hi):
     return lo, hi
 
 
+def check_skew_max(skew_max) -> float:
+    """The largest time offset of the body sensor the skew fix considers: seconds >= 0 (fit_eiv's and the eiv
+    baselines' one check); returns it."""
+    return check_number("skew_max", skew_max, 0, unit="seconds")
+
+
 def skew_edges(skew_max: float, dt: float) -> tuple[int, int]:
     """The skew fix's lead and lag samples at a window's ends: the advance's reach and its sinc's half width."""
     return SkewFix().eiv_edges(skew_max, dt)
@@ -114,7 +120,7 @@ def fit_eiv(
     Float32 windows are taken in float64; a single window (N,) as (1, N). Returns EivFit.
     """
     code = fix_code(fix)
-    skew_max = check_number("skew_max", skew_max, 0.0, unit="seconds")
+    skew_max = check_skew_max(skew_max)
     seat, body, good, grid, q = setup_windows(seat, body, dt, noise_ratio, model)
     max_iter = check_int("max_iter", max_iter, 1)
     tol = check_number("tol", tol, 0.0, low_open=True)

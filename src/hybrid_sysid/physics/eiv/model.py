@@ -39,6 +39,9 @@ from numpy.polynomial import polynomial as poly
 from hybrid_sysid.core.checks import bad, check_choice, check_dt, check_number
 
 MODELS = ("discrete", "continuous")
+# lambda beyond it leaves the fit as it is (the body channel then counts as noise alone); near 1e300 the weights
+# overflow and no window converges
+NOISE_RATIO_MAX = 1e6
 CHUNK = 1 << 17  # windows x frequencies in one block: bounds the ~40 arrays of that size an iteration makes
 
 # artanh(w) / w ~ (1 - 735 t / 945 + 64 t^2 / 945) / (1 - 1050 t / 945 + 225 t^2 / 945), t = w^2: its [2/2] Pade
@@ -157,10 +160,16 @@ def as_windows(seat, body):
     return seat, body, good
 
 
+def check_noise_ratio(noise_ratio) -> float:
+    """lambda = sigma_body^2 / sigma_seat^2 in [0, NOISE_RATIO_MAX]: the one check of every noise_ratio (fit_eiv,
+    crb_relative_std, the eiv baselines); returns it."""
+    return check_number("noise_ratio", noise_ratio, 0, NOISE_RATIO_MAX, unit="sigma_body^2 / sigma_seat^2")
+
+
 def setup_windows(seat, body, dt, noise_ratio, model):
     check_choice("model", model, MODELS)
     dt = check_dt(dt)
-    lam = check_number("noise_ratio", noise_ratio, 0.0)
+    lam = check_noise_ratio(noise_ratio)
     seat, body, good = as_windows(seat, body)
     grid = frequency_grid(model, dt, seat.shape[1])
     m = grid.basis.shape[1]
