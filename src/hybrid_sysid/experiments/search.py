@@ -63,12 +63,13 @@ def search_space(params, where: str = "hydra.sweeper") -> dict:
     return space
 
 
-def check_search(cfg: DictConfig, params, n_trials, where: str = "hydra.sweeper") -> dict:
-    """A search's space and budget, checked before any trial: n_trials >= 1; each parameter choice(...) or
-    interval(a, b) with a < b (and a > 0 when tagged log), and every value it can take of the type of the
-    config's own value at that key (a text choice for a float key would only fail inside a trial, and stop a
-    study). Returns the space (``search_space``); ConfigError naming ``where``'s key otherwise."""
-    check_int(f"{where}.n_trials", n_trials, 1)
+def check_search(cfg: DictConfig, params, n_trials, where: str = "hydra.sweeper", trials_key: str = "") -> dict:
+    """A search's space and budget, checked before any trial: n_trials >= 1 (named ``trials_key``, by default
+    ``where``'s); each parameter choice(...) or interval(a, b) with a < b (and a > 0 when tagged log), and every
+    value it can take of the type of the config's own value at that key (a text choice for a float key would only
+    fail inside a trial, and stop a study). Returns the space (``search_space``); ConfigError naming ``where``'s
+    key otherwise."""
+    check_int(trials_key or f"{where}.n_trials", n_trials, 1)
     for key, spec in (params or {}).items():
         name = f"{where}.params.{key}"
         value = _parse(key, spec, name)

@@ -27,7 +27,7 @@ import optuna
 from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.config import validate
-from hybrid_sysid.core.checks import bad, check_int
+from hybrid_sysid.core.checks import bad
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
 from hybrid_sysid.experiments.presets import preset
 from hybrid_sysid.experiments.search import check_sampler, check_search, sampler_for
@@ -84,9 +84,7 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     """The search, then the default and best values on each seed (module docstring). Returns a short record."""
     job_dir, t = Path(job_dir), cfg.tuned
     sweeper = preset("hparams_search", t.search, "tuned.search").hydra.sweeper
-    if t.n_trials < 1:
-        check_int("tuned.n_trials", t.n_trials, 1)
-    space = check_search(cfg, sweeper.params, t.n_trials, "tuned.search: hydra.sweeper")
+    space = check_search(cfg, sweeper.params, t.n_trials, "tuned.search: hydra.sweeper", "tuned.n_trials")
     trial_settings = {"trainer": {"curve_every_n_steps": None}}  # a trial is scored on validation alone
     defaults = defaults_in(cfg, space)
     if not t.seeds:
