@@ -1,5 +1,5 @@
-"""noise_ratio and skew_max have one check each (physics.eiv's check_noise_ratio, check_skew_max): fit_eiv,
-crb_relative_std, the eiv baseline and the command line refuse a bad value with the same key and range."""
+"""noise_ratio and skew_max have one check each (physics.eiv's check_noise_ratio, the skew fix's check_skew_max):
+fit_eiv, crb_relative_std, the baselines and the command line refuse a bad value with the same key and range."""
 
 import numpy as np
 import pytest
@@ -33,11 +33,16 @@ def test_the_ends_of_the_noise_ratio_range_are_taken():
     assert [ErrorsInVariablesFit(noise_ratio=r).noise_ratio for r in (0, 1e6)] == [0.0, 1e6]
 
 
-def test_a_negative_skew_max_is_refused_by_the_fit_and_the_baseline():
-    from hybrid_sysid.baselines import ErrorsInVariablesFit
+def test_a_negative_skew_max_is_refused_by_the_fit_and_the_baselines():
+    from hybrid_sysid.baselines import ErrorsInVariablesFit, LeastSquaresFit
     from hybrid_sysid.physics.eiv import fit_eiv
 
-    for call in (lambda: fit_eiv(*WINDOWS, 0.005, skew_max=-0.01), lambda: ErrorsInVariablesFit(skew_max=-0.01)):
+    calls = [
+        lambda: fit_eiv(*WINDOWS, 0.005, skew_max=-0.01),
+        lambda: ErrorsInVariablesFit(skew_max=-0.01),
+        lambda: LeastSquaresFit(skew_max=-0.01),
+    ]
+    for call in calls:
         with pytest.raises(ConfigError) as caught:
             call()
         assert str(caught.value) == f"skew_max = -0.01 is not allowed: {SKEW_RANGE}"

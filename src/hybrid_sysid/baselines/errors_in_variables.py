@@ -28,10 +28,11 @@ from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.eiv import P_HI, P_LO, eiv_model, fit_eiv, log_p_prior
-from hybrid_sysid.physics.eiv.fit import check_skew_max, fix_samples
+from hybrid_sysid.physics.eiv.fit import fix_samples
 from hybrid_sysid.physics.eiv.model import check_noise_ratio
 from hybrid_sysid.physics.faults import fix_code
-from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass
+from hybrid_sysid.physics.faults.skew import check_skew_max
+from hybrid_sysid.physics.filters import bandpass_taps
 from hybrid_sysid.physics.seat_fit import fit_windows
 
 PRIOR_KEYS = ("m3_min", "m3_max", "c3", "k3", "seat_spread")
@@ -88,9 +89,8 @@ class ErrorsInVariablesFit:
         fix_code(fix)  # a registered fix (physics.faults.fixes), else a ConfigError naming fix
         self.fix = fix
         self.skew_max = check_skew_max(skew_max)
-        check_bandpass(low_hz, high_hz, taps, dt)
+        self.fir = bandpass_taps(low_hz, high_hz, taps, dt)  # physics.filters' check of the band first
         self.dt, self.taps = float(dt), int(taps)
-        self.fir = bandpass_taps(low_hz, high_hz, taps, dt)
         if prior is not None and not isinstance(prior, Mapping):
             bad("prior", prior, f"null, or a dict with {', '.join(PRIOR_KEYS)}")
         self.prior_settings = None if prior is None else dict(prior)

@@ -24,6 +24,7 @@ from hybrid_sysid.data import SPLITS  # the split codes that seed the evaluation
 from hybrid_sysid.data.spec import check_filter_fits, window_starts
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.faults import fix_code
+from hybrid_sysid.physics.faults.skew import check_skew_max
 from hybrid_sysid.physics.filters import bandpass_taps, check_bandpass, fir_valid
 
 _SERIES_CHUNK = 256  # recordings per chunk of the series variant: bounds memory, fixes the noise streams
@@ -127,7 +128,7 @@ class LeastSquaresFit:
         self.span, self.filter = span, filter
         self.low_hz, self.high_hz, self.taps, self.dt = float(low_hz), float(high_hz), int(taps), float(dt)
         self.fir = bandpass_taps(low_hz, high_hz, taps, dt) if filter == "bandpass" else None
-        self.fix, self.skew_max = fix, float(skew_max)
+        self.fix, self.skew_max = fix, check_skew_max(skew_max)
         self.fit_seconds = 0.0  # wall time spent in predict_split: a baseline's only work
 
     def check_lengths(self, window: int, n_steps: int) -> None:

@@ -70,10 +70,9 @@ def filter_taps(filter: dict, dt: float) -> np.ndarray:
     if missing:
         raise ConfigError(f"filter.{missing[0]}", missing=True, allowed=f"give {', '.join(FILTER_KEYS)}")
     try:
-        check_bandpass(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
-    except ConfigError as exc:
+        return bandpass_taps(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
+    except ConfigError as exc:  # bandpass_taps' check names its argument: under filter, as the config has it
         raise exc.under("filter") from None
-    return bandpass_taps(filter["low_hz"], filter["high_hz"], filter["taps"], dt)
 
 
 def fir_valid(x: np.ndarray, h: np.ndarray) -> np.ndarray:

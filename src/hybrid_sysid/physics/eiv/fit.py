@@ -33,7 +33,7 @@ from hybrid_sysid.physics.eiv.matrices import inverse_diagonal, positive
 from hybrid_sysid.physics.eiv.model import CHUNK, error_spectra, frequency_grid, setup_windows, transfer_polynomials
 from hybrid_sysid.physics.eiv.newton import MAX_ITER, TOL, minimise
 from hybrid_sysid.physics.faults.registry import fix_code
-from hybrid_sysid.physics.faults.skew import SkewFix
+from hybrid_sysid.physics.faults.skew import SkewFix, check_skew_max
 
 P_LO = (0.5, 25.0)  # the default box of (p1, p2): wide around the seats' 2..40 1/s and 100..1500 1/s^2
 P_HI = (200.0, 6000.0)
@@ -64,12 +64,6 @@ def _box(p_lo, p_hi):
     if not (lo.shape == hi.shape == (2,) and np.isfinite(lo).all() and np.isfinite(hi).all() and (lo < hi).all()):
         bad("p_lo", f"{p_lo} .. {p_hi}", "two finite values > 0 (p1, p2) each, p_lo < p_hi")
     return lo, hi
-
-
-def check_skew_max(skew_max) -> float:
-    """The largest time offset of the body sensor the skew fix considers: seconds >= 0 (fit_eiv's and the eiv
-    baselines' one check); returns it."""
-    return check_number("skew_max", skew_max, 0, unit="seconds")
 
 
 def skew_edges(skew_max: float, dt: float) -> tuple[int, int]:

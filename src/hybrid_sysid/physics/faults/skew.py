@@ -16,7 +16,7 @@ from functools import lru_cache
 import numpy as np
 from scipy import special
 
-from hybrid_sysid.core.checks import bad
+from hybrid_sysid.core.checks import bad, check_number
 from hybrid_sysid.physics.faults.base import Fault, Setting, value_of
 from hybrid_sysid.physics.faults.fix import Fix
 from hybrid_sysid.physics.filters import fir_valid
@@ -32,6 +32,12 @@ BETA_MAX = 40.0
 DELAY_HALF_WIDTH = 12
 SKEW_HALF_WIDTH = 8  # the likelihood's advance: a Kaiser-windowed sinc of 2 x 8 + 2 taps (physics.eiv.faults)
 SKEW_STEP = 1.0  # samples between the offsets of the likelihood's coarse search over [-skew_max, skew_max]
+
+
+def check_skew_max(skew_max) -> float:
+    """The largest offset of the body sensor the skew fix considers: seconds >= 0, the one check of fit_eiv's and
+    the baselines' skew_max; returns it."""
+    return check_number("skew_max", skew_max, 0, unit="seconds")
 
 
 class SkewFix(Fix):
