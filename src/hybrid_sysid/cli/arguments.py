@@ -4,6 +4,7 @@ repeats, converted and checked; a bad argument is one UsageError naming the key,
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,14 +17,15 @@ class UsageError(ConfigError):
 
 @dataclass(frozen=True)
 class Key:
-    """One key a command takes. ``kind``: text, bool (true or false), int (>= ``low``), dt (a time step in seconds,
-    core.checks.check_dt), choice (one of ``choices``) or list (comma-separated, brackets optional). ``repeats``: may
-    be given more than once, each value kept in order."""
+    """One key a command takes. ``kind``: text, bool (true or false), int (>= ``low``, or by ``check``), dt (a time
+    step in seconds, core.checks.check_dt), choice (one of ``choices``) or list (comma-separated, brackets optional).
+    ``repeats``: may be given more than once, each value kept in order."""
 
     kind: str = "text"
     default: object = None
     choices: tuple = ()
     low: int = 1
+    check: Callable | None = None  # int: the check of the value's owner, in place of low (windows: inference's)
     repeats: bool = False
     allowed: str = ""  # what the key takes, in the error's words; derived from the kind when empty
 
@@ -69,7 +71,12 @@ def convert(name: str, value: str, key: Key):
         try:
             number = int(value)
         except ValueError:
-            number = key.low - 1
+            number = key.low - 1 if key.check is None else value
+        if key.check is not None:  # the owner's range, shown with the value as given
+            try:
+                return key.check(number)
+            except ConfigError as exc:
+                raise UsageError(name, value, exc.allowed) from None
         if number < key.low:
             raise UsageError(name, value, key.allowed or f"an integer >= {key.low}")
         return number

@@ -23,7 +23,7 @@ import hybrid_sysid
 from hybrid_sysid.cli.arguments import Key, UsageError, parse
 from hybrid_sysid.core.checks import ConfigError, Shown
 from hybrid_sysid.core.files import write_atomic
-from hybrid_sysid.inference.inputs import EstimateWarning, InputError
+from hybrid_sysid.inference.inputs import EstimateWarning, InputError, check_windows
 from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.runs import layout
 
@@ -39,7 +39,7 @@ KEYS = {
     "input": Key(),
     "output": Key(),
     "overwrite": Key("bool", False),
-    "windows": Key("int", 8),
+    "windows": Key("int", 8, check=check_windows),
     "resample": Key("bool", False),
     "dt": Key("dt", allowed="a sampling interval > 0 in seconds"),
 }

@@ -25,7 +25,14 @@ from hybrid_sysid.core.options import DEFAULT_MEASUREMENT
 from hybrid_sysid.data.readers import DT_RTOL
 from hybrid_sysid.data.spec import window_starts
 from hybrid_sysid.inference import flags as F
-from hybrid_sysid.inference.inputs import EstimateWarning, InputError, check_estimates, check_values, recordings
+from hybrid_sysid.inference.inputs import (
+    EstimateWarning,
+    InputError,
+    check_estimates,
+    check_values,
+    check_windows,
+    recordings,
+)
 from hybrid_sysid.inference.memory import CHUNK, check_window_memory
 from hybrid_sysid.model.base import Baseline
 from hybrid_sysid.physics import QuarterCar
@@ -108,8 +115,7 @@ class Estimator:
             A ``ValueError`` naming the bad input: a short recording, a non-finite or out-of-float32 value, another
             ``dt``, bad ``windows`` or ``resample``, disagreeing shapes, or windows beyond the memory available.
         """
-        if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or windows < 1:
-            raise InputError("windows", windows, "an integer >= 1")
+        check_windows(windows)
         if not isinstance(resample, (bool, np.bool_)):  # resample="false" is a true value: it would resample
             raise InputError("resample", resample, "True or False")
         pairs = recordings(seat_acc, body_acc)

@@ -11,6 +11,14 @@ from hybrid_sysid.core.checks import InputError, Shown  # InputError: core's, so
 FLOAT32_MAX = float(np.finfo(np.float32).max)  # the network reads float32: larger magnitudes become inf
 
 
+def check_windows(windows) -> int:
+    """K, the windows averaged per recording: an integer >= 1 (the estimator's check, hybrid-sysid-predict's too);
+    returns it."""
+    if isinstance(windows, bool) or not isinstance(windows, (int, np.integer)) or windows < 1:
+        raise InputError("windows", windows, "an integer >= 1")
+    return int(windows)
+
+
 class EstimateWarning(UserWarning):
     """An estimate not to trust (a flag of docs/predict.md); the message says which recordings and why."""
 
