@@ -32,7 +32,7 @@ from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
 from hybrid_sysid.launch.process import console_main, fail
 from hybrid_sysid.runs import locks
-from hybrid_sysid.runs.layout import enclosing_run
+from hybrid_sysid.runs.layout import check_outside_runs
 from hybrid_sysid.runs.rundir import RunDir
 
 log = logging.getLogger("hybrid_sysid")
@@ -115,11 +115,8 @@ def validate_saved(cfg: DictConfig, run_dir: Path) -> None:
 def outside_other_runs(out_dir, key: str) -> None:
     """The evaluation's directory lies inside no other run or sweep directory (its own, evaluated again, is its
     own): an evaluation in a run's checkpoints/ once wrote there, and that run's report then listed two runs.
-    predict's output= and the report's results= refuse such paths alike (runs.layout.enclosing_run)."""
-    holder = enclosing_run(Path(str(out_dir)).resolve().parent)
-    if holder is not None:
-        where = "a path outside run and sweep directories, whose files are their record"
-        bad(key, Shown(str(out_dir)), f"it lies inside the run or sweep directory {holder}; {where}")
+    predict's output= and the report's results= refuse such paths alike (runs.layout.check_outside_runs)."""
+    check_outside_runs(key, out_dir, Path(str(out_dir)).resolve().parent)
 
 
 class EvalPreflight(Preflight):

@@ -73,12 +73,9 @@ def check_output(args: dict) -> Path | None:
     target, source = output.resolve(), Path(args["input"])
     if target == source.resolve() or (output.exists() and source.exists() and os.path.samefile(output, source)):
         refuse(f"it is the input file (input = {args['input']}); another file, an output never replaces its input")
-    where = "a path outside run and sweep directories, whose files are their record"
     if target.is_relative_to(Path(args["run"]).resolve()):
-        refuse(f"it lies inside the run directory run = {args['run']}; {where}")
-    holder = layout.enclosing_run(output)  # a sweep's directory too (multirun.yaml)
-    if holder is not None:
-        refuse(f"it lies inside the run or sweep directory {holder}; {where}")
+        refuse(f"it lies inside the run directory run = {args['run']}; {layout.OUTSIDE_RUNS}")
+    layout.check_outside_runs("output", args["output"], error=UsageError)  # a sweep's directory too
     if (output.exists() or output.is_symlink()) and not args.get("overwrite"):
         refuse("it exists; a new file, or overwrite=true to replace it")
     if output.is_symlink() or (output.exists() and not output.is_file()):

@@ -20,7 +20,7 @@ from hybrid_sysid.core.options import METRICS
 from hybrid_sysid.core.stop import Interrupted
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.launch.console import tolerant_streams
-from hybrid_sysid.runs.layout import RECORD, enclosing_run
+from hybrid_sysid.runs.layout import RECORD, check_outside_runs
 from hybrid_sysid.runs.reading import find_runs
 
 PROG = "hybrid-sysid-report"
@@ -173,10 +173,10 @@ def _inside_a_run(args) -> str | None:
     own = {p.resolve() for p in args.paths}
     for key in ("results", "out"):
         value = getattr(args, key)
-        holder = None if value is None else enclosing_run(value)
-        if holder is not None and not (key == "out" and Path(value).resolve() in own):
-            allowed = "a path outside run and sweep directories, whose files are their record"
-            return str(
-                UsageError(key, Shown(str(value)), f"it lies inside the run or sweep directory {holder}; {allowed}")
-            )
+        if value is None or (key == "out" and Path(value).resolve() in own):
+            continue
+        try:
+            check_outside_runs(key, value, error=UsageError)
+        except UsageError as exc:
+            return str(exc)
     return None

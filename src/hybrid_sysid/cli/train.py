@@ -22,11 +22,10 @@ from omegaconf import DictConfig
 from hybrid_sysid import config
 from hybrid_sysid.config import validate
 from hybrid_sysid.config.help import quick_help
-from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.launch.console import tolerant_streams
 from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
 from hybrid_sysid.launch.process import console_main
-from hybrid_sysid.runs.layout import SWEEP_CONFIG, enclosing_run
+from hybrid_sysid.runs.layout import SWEEP_CONFIG, check_outside_runs
 from hybrid_sysid.runs.resume import check_resume
 from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.training.tracking import job_naming, log_run_figures
@@ -63,16 +62,12 @@ def outside_other_runs(out_dir: Path, key: str, resume=None) -> None:
     job lives in its sweep's directory, so ``resume=`` of that job (its parent holds multirun.yaml), or that job's
     existing directory as a single run's, is allowed."""
     here = out_dir.resolve()
-    holder = enclosing_run(here.parent)
-    if holder is None:
-        return
-    own_job = holder == here.parent and (holder / SWEEP_CONFIG).is_file()
+    own_job = (here.parent / SWEEP_CONFIG).is_file()
     # a job of its sweep run again as a single run, in its own directory: its record decides (a completed one is
     # skipped, a changed config refused: launch.job), as for the sweep's command again
     if own_job and (here.is_dir() or (resume and Path(str(resume)).resolve() == here)):
         return
-    where = "a path outside run and sweep directories, whose files are their record"
-    bad(key, Shown(str(out_dir)), f"it lies inside the run or sweep directory {holder}; {where}")
+    check_outside_runs(key, out_dir, here.parent)
 
 
 def run_task(cfg: DictConfig, run_dir: Path, overrides: list[str], multirun: bool, hc=None) -> dict:
