@@ -64,15 +64,7 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
             "input", Shown(str(path)), f"a file that can be read as CSV ({type(exc).__name__}: {exc})"
         ) from None
     check_header(path)
-    needed = list(CHANNELS) + ([] if dt is not None else ["time"])
-    missing = [c for c in needed if c not in df.columns]
-    if missing:
-        raise InputError(
-            "input",
-            Shown(str(path)),
-            f"columns seat_acc, body_acc, and time or dt= (it has no {', '.join(missing)}; its columns: "
-            f"{', '.join(map(str, df.columns))})",
-        )
+    check_present(path, list(map(str, df.columns)), "time", dt, kind="columns")
     if df.empty:
         raise InputError("input", Shown(str(path)), "one row per sample (it holds a header but no rows)")
     columns = [c for c in (*CHANNELS, "time") if c in df.columns]
@@ -101,6 +93,19 @@ def read_csv(path: Path, dt: float | None) -> Recordings:
                 "when the time stamps are rounded)",
             )
     return Recordings(seat, body, step, names)
+
+
+def check_present(path: Path, names: list[str], rate: str, dt: float | None, kind: str, one: str = "") -> None:
+    """The file's ``names`` (its ``kind``, columns or arrays) hold seat_acc, body_acc and, without dt=, ``rate``
+    (its time column or dt array); ``one``: the word before a missing name in the message."""
+    missing = [k for k in (*CHANNELS, *([] if dt is not None else [rate])) if k not in names]
+    if missing:
+        raise InputError(
+            "input",
+            Shown(str(path)),
+            f"{kind} seat_acc, body_acc, and {rate} or dt= (it has no {one}{', '.join(missing)}; its {kind}: "
+            f"{', '.join(names)})",
+        )
 
 
 def check_header(path: Path) -> None:
@@ -195,15 +200,7 @@ def read_npz(path: Path, dt: float | None) -> Recordings:
             "not an .npz archive",
         )
     with loaded as z:
-        needed = list(CHANNELS) + ([] if dt is not None else ["dt"])
-        missing = [k for k in needed if k not in z.files]
-        if missing:
-            raise InputError(
-                "input",
-                Shown(str(path)),
-                f"arrays seat_acc, body_acc, and dt or dt= (it has no array {', '.join(missing)}; its arrays: "
-                f"{', '.join(z.files)})",
-            )
+        check_present(path, z.files, "dt", dt, kind="arrays", one="array ")
         # only the arrays read: another array (an object array, a huge one) is never loaded
         arrays = {k: npz_array(z, k, path) for k in (*CHANNELS, "dt") if k in z.files}
     for k in CHANNELS:
