@@ -20,11 +20,14 @@ def close(seconds, truth, work) -> bool:
     return abs(seconds - truth) <= max(WITHIN * truth, max(work) - min(work))
 
 
-def simulate(kinds, work, workers, imports=7.0, data=0.0, gap=1.5, overhead=2.0, launch=5.0):
+def simulate(kinds, work, workers, imports=7.0, data=0.0, gap=1.5, overhead=2.0, launch=5.0, steps=None, warmup=0.0):
     """The progress events of a sweep: jobs dispatched in order to the first free worker, ``gap`` seconds of the
     launcher's before each job; a worker's first job imports (``imports`` s) and waits for the dataset, which
     the first jobs simulate once (``data`` s); each job then works ``work[i]`` s (what its record says) and
-    scores and writes ``overhead`` s more. Returns (header, events in time order)."""
+    scores and writes ``overhead`` s more. A job of ``steps[i]`` > 0 optimiser steps reports them as the training
+    does (core.steps: its first step, then each twentieth), its steps evenly spread over its work, but for a
+    cold worker's first twentieth, ``warmup`` s slower (libraries warming up). Returns (header, events in time
+    order)."""
     free = [launch] * workers
     cold = [True] * workers
     data_ready = launch + gap + imports + data
@@ -35,6 +38,11 @@ def simulate(kinds, work, workers, imports=7.0, data=0.0, gap=1.5, overhead=2.0,
         ready = max(start + imports, data_ready) if cold[i] else start
         end = ready + w + overhead
         events.append({"start": num, "t": start, "pid": 100 + i})
+        total = (steps or [0] * len(work))[num]
+        slow = warmup if cold[i] else 0.0
+        for done in range(0, total + 1, max(total // 20, 1)) if total else ():
+            at = ready + slow * min(done / (total / 20), 1.0) + (w - slow) * done / total
+            events.append({"steps": num, "t": at, "done": done, "of": total})
         entry = {"t": end, "seconds": end - start, "cold": cold[i], "pid": 100 + i, "work": w, "ok": True}
         events.append({**entry, "end": num})
         free[i], cold[i] = end, False
@@ -42,14 +50,15 @@ def simulate(kinds, work, workers, imports=7.0, data=0.0, gap=1.5, overhead=2.0,
     return {"jobs": len(work), "start": 0.0, "at_once": workers, "kinds": kinds}, events
 
 
-def checks(header, events):
-    """(now, estimate, truth, untimed, elapsed / done x remaining) at every job's end but the last."""
+def checks(header, events, at_steps=False):
+    """(now, estimate, truth, untimed, elapsed / done x remaining) at every job's end but the last (and with
+    ``at_steps``, at every step report after the first end as well, where a step line may print)."""
     last = max(e["t"] for e in events)
     out, done = [], 0
     for n, e in enumerate(events):
-        if "end" not in e or e["t"] == last:
+        if e["t"] == last or not ("end" in e or (at_steps and "steps" in e and done)):
             continue
-        done += 1
+        done += "end" in e
         seconds, untimed = estimate(header, events[: n + 1], e["t"])
         old = e["t"] / done * (header["jobs"] - done)
         out.append((e["t"], seconds, last - e["t"], untimed, old))
@@ -70,15 +79,20 @@ def test_a_first_wave_that_simulated_the_dataset_does_not_inflate_the_estimate()
 
 @pytest.mark.parametrize("workers", [1, 2, 3])
 def test_two_kinds_in_parallel_stay_within_30_percent_from_the_first_end(workers):
-    """Two objectives of different cost, seeds inner (Hydra's order): the second kind is guessed at the first's
-    mean until one of its jobs ends, and the line says how many jobs that guess covers."""
+    """Two objectives of different cost, seeds inner (Hydra's order), 1000 steps each: the second kind is timed by
+    its first job's steps from their tenth on; before, the estimate is a lower bound and the line says how many
+    jobs it did not time."""
     kinds = ["objective=labelled"] * 4 + ["objective=hybrid"] * 4
     work = [60.0, 58.0, 63.0, 61.0, 72.0, 75.0, 70.0, 77.0]
-    header, events = simulate(kinds, work, workers=workers, data=30.0)
-    seen = checks(header, events)
-    for now, seconds, truth, _, _ in seen:
-        assert close(seconds, truth, work[4:]), (now, seconds, truth)
-    assert seen[0][3] == 4  # at the first end: the four hybrid jobs are of a kind not timed yet
+    header, events = simulate(kinds, work, workers=workers, data=30.0, steps=[1000] * 8)
+    seen = checks(header, events, at_steps=True)
+    for now, seconds, truth, untimed, _ in seen:
+        if untimed:
+            assert seconds <= truth, (now, seconds, truth)
+        else:
+            assert close(seconds, truth, work[4:]), (now, seconds, truth)
+    first = next(c for c in seen if c[0] == min(e["t"] for e in events if "end" in e))
+    assert first[3] == 4  # at the first end, the four hybrid jobs: none has a tenth of its steps done
     assert seen[-1][3] == 0
 
 
@@ -122,12 +136,15 @@ def test_job_lines_from_the_progress_file(tmp_path):
     header, done = count_done(tmp_path, 0, {"t": 70.0, "seconds": 60.0, "cold": False, "pid": 7, "work": 55.0})
     ret = SimpleNamespace(overrides=["objective=a"], return_value={"status": "completed"})
     line = job_line(header, done, 0, ret, 60.0, now=70.0)
-    # two jobs left on one worker: one of kind a (60 s) and one of kind b, guessed at a's mean
-    left = "about 2:00 left (1 job of a kind not timed yet)"
+    # two jobs left on one worker: one of kind a (60 s) and one of kind b, not timed: at least the 5 s beyond its
+    # work that job 0 took (a lower bound)
+    left = "at least 1:05 left (1 job of a kind not timed yet)"
     assert line == f"[1/3] #0 objective=a: completed in 60 s; sweep 1:10, {left}"
     mark_start(tmp_path, 1, 70.0, pid=7)
     header, done = count_done(tmp_path, 1, {"t": 130.0, "seconds": 60.0, "cold": False, "pid": 7, "work": 55.0})
-    assert job_line(header, done, 1, ret, 60.0, now=130.0).endswith("about 1:00 left (1 job of a kind not timed yet)")
+    assert job_line(header, done, 1, ret, 60.0, now=130.0).endswith(
+        "at least 0:05 left (1 job of a kind not timed yet)"
+    )
 
 
 def test_an_older_progress_file_falls_back_on_elapsed_per_job(tmp_path):
@@ -164,3 +181,116 @@ def test_a_resumed_sweep_times_a_kind_by_its_completed_jobs_records():
     assert untimed == 0 and abs(seconds - truth) <= WITHIN * truth, (seconds, truth)
     # without the records' times the networks would count at the baselines' 5 s: far below the truth
     assert seconds > 10 * 2 * 5.0
+
+
+def test_networks_after_baselines_are_timed_by_their_steps_long_before_one_ends():
+    """The anchored sweep's order on two workers: for each of two faults, a classical fit's three seeds (seconds),
+    then two network kinds' three seeds each (minutes, steps and cost of their own). A kind is timed by its first
+    network's steps from a tenth of them on; the second fault's kinds by the first's once a classical fit took as
+    long under both. Until then the estimate is a lower bound and says so ("at least"); every other estimate is
+    within 30% of the truth."""
+    kinds, work, steps = [], [], []
+    for fault in ("none", "drift"):
+        for kind, seconds, n in (("ls", 1.0, 0), ("cnn", 300.0, 6000), ("anchored", 120.0, 1500)):
+            for seed in range(3):
+                kinds.append(f"fault={fault} estimator={kind}")
+                work.append(seconds * (1 + 0.05 * seed) if n else seconds)  # seeds' spread
+                steps.append(n)
+    header, events = simulate(kinds, work, workers=2, steps=steps, warmup=20.0)
+    seen = checks(header, events, at_steps=True)
+    for now, seconds, truth, untimed, _ in seen:
+        if untimed:  # nothing says what a kind costs yet: no more than the truth, as "at least" says
+            assert seconds <= truth, (now, seconds, truth)
+        else:
+            assert close(seconds, truth, work[3:9]), (now, seconds, truth)
+    # the second fault's classical fit ends as long as the first's: from then on every kind is timed
+    drift = min(e["t"] for e in events if e.get("end") == 9)
+    assert all(not c[3] for c in seen if c[0] >= drift) and any(c[0] >= drift for c in seen)
+    # at a tenth of the first network's steps, its kind's three jobs are timed, which without steps they are not
+    tenth = next(e["t"] for e in events if e.get("steps") == 3 and e["done"] == 600)
+    upto = [e for e in events if e["t"] <= tenth]
+    blind = estimate(header, [e for e in upto if "steps" not in e], tenth)[1]
+    assert estimate(header, upto, tenth)[1] == blind - 3
+
+
+def test_a_network_alongside_baselines_is_timed_by_its_steps_at_every_later_end():
+    """A network on one worker, thirty baselines ending one after the other on the other, a second network last:
+    each baseline's end after the first network's tenth of steps estimates within 30% of the truth (the network's
+    steps and the warm jobs' overhead); before, the line says "at least" and is no more than the truth."""
+    kinds = ["estimator=cnn"] + ["estimator=ls"] * 30 + ["estimator=cnn"]
+    work = [200.0] + [4.0] * 30 + [210.0]
+    steps = [3000] + [0] * 30 + [3000]
+    header, events = simulate(kinds, work, workers=2, steps=steps, warmup=10.0)
+    seen = checks(header, events)
+    tenth = next(e["t"] for e in events if e.get("steps") == 0 and e["done"] == 300)
+    later = [c for c in seen if c[0] >= tenth]
+    assert later and all(not c[3] for c in later)
+    for now, seconds, truth, _, _ in later:
+        assert close(seconds, truth, [200.0, 210.0]), (now, seconds, truth)
+    before = [c for c in seen if c[0] < tenth]
+    assert before and all(c[3] and c[1] <= c[2] for c in before)
+
+
+def test_step_reports_at_the_first_step_and_each_twentieth(monkeypatch):
+    """training.callbacks.StepReports, on a trainer's step counter: a report at the fit's start and at each
+    multiple of max_steps / 20 (core.steps.PARTS), none on a rank above 0 or when nobody listens."""
+    from hybrid_sysid.core import steps
+    from hybrid_sysid.training.callbacks import StepReports
+
+    def fit(max_steps, start=0, zero=True):
+        heard = []
+        steps.listen(lambda done, total: heard.append((done, total)))
+        try:
+            trainer = SimpleNamespace(global_step=start, max_steps=max_steps, is_global_zero=zero)
+            cb = StepReports()
+            cb.on_train_start(trainer, None)
+            while trainer.global_step < max_steps:
+                trainer.global_step += 1
+                cb.on_train_batch_end(trainer, None, None, None, 0)
+        finally:
+            steps.listen(None)
+        return heard
+
+    assert fit(300) == [(d, 300) for d in range(0, 301, 15)]
+    assert fit(10) == [(d, 10) for d in range(0, 11)]  # fewer steps than parts: every step
+    assert fit(300, start=100) == [(100, 300)] + [(d, 300) for d in range(105, 301, 15)]  # a resumed fit
+    assert fit(300, zero=False) == []
+
+
+def test_a_step_line_once_for_a_kind_not_timed_yet(tmp_path):
+    """The worker's line from a job's steps (progress.mark_steps): once per kind with no ended job, after a first
+    end, only when the job still needs more than STEP_LINE_AFTER; its estimate is the steps' (no "at least")."""
+    from hybrid_sysid.launch.progress import STEP_LINE_AFTER, mark_steps
+
+    kinds = ["estimator=ls", "estimator=cnn", "estimator=cnn"]
+    header = {"jobs": 3, "swept": ["estimator"], "start": 0.0, "at_once": 2, "kinds": kinds}
+    (tmp_path / ".progress").write_text(json.dumps(header) + "\n")
+    mark_start(tmp_path, 0, 1.0, pid=1)
+    mark_start(tmp_path, 1, 1.0, pid=2)
+    given = ["estimator=cnn"]
+    assert mark_steps(tmp_path, 1, given, 0, 300, 1.0, 10.0) is None  # no job ended: no line guessed the kind
+    count_done(tmp_path, 0, {"t": 11.0, "seconds": 10.0, "cold": True, "pid": 1, "work": 1.0, "ok": True})
+    mark_start(tmp_path, 2, 11.0, pid=1)
+    assert mark_steps(tmp_path, 1, given, 15, 300, 1.0, 20.0) is None  # its first twentieth alone: no rate yet
+    line = mark_steps(tmp_path, 1, given, 30, 300, 1.0, 35.0)  # 1 s a step from the 15th on
+    # job 1 needs 270 s more; job 2, on the other worker since 11 s, 300 steps at 1 s (no warm job: no overhead)
+    # less the 24 s it ran: the last ends in max(270, 276) s
+    assert line == "[1/3 ended] #1 estimator=cnn: step 30 of 300 in 34 s; sweep 0:35, about 4:36 left", line
+    assert mark_steps(tmp_path, 2, given, 30, 300, 11.0, 40.0) is None  # said once for the kind
+    assert 270 > STEP_LINE_AFTER
+
+
+def test_a_jobs_step_rate_leaves_its_first_twentieth_and_earlier_fits_out():
+    """rates_of: seconds per step from a job's second report on (its first steps load data and warm libraries
+    up); a job of several fits (a chained experiment's) is timed by its latest fit alone."""
+    from hybrid_sysid.launch.time_left import rates_of
+
+    def reports(*points):
+        return [{"steps": 4, "t": t, "done": d, "of": of} for t, d, of in points]
+
+    first = reports((0.0, 0, 100), (30.0, 5, 100))  # two reports: the first twentieth alone, no rate
+    assert rates_of(first) == {}
+    later = first + reports((40.0, 10, 100), (50.0, 15, 100))  # 2 s a step after the slow start
+    assert rates_of(later) == {4: (2.0, 15, 100, 50.0)}
+    second_fit = later + reports((60.0, 0, 40), (61.0, 2, 40), (64.0, 4, 40))  # 1.5 s a step
+    assert rates_of(second_fit) == {4: (1.5, 4, 40, 64.0)}

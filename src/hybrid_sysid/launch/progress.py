@@ -18,7 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.core.words import count
-from hybrid_sysid.launch.time_left import estimate
+from hybrid_sysid.launch.time_left import estimate, rates_of
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 MAX_KINDS = 100_000  # jobs: a longer sweep's header names no kinds (its estimate then treats jobs alike)
@@ -121,6 +121,34 @@ def count_done(sweep_dir: Path, num, entry: dict | None = None) -> tuple[dict, i
     return header, len({e["end"] for e in events if "end" in e})
 
 
+STEP_LINE_AFTER = 30.0  # seconds: a job of a kind not timed yet that still needs this long says its time left
+
+
+def mark_steps(sweep_dir: Path, num, given: list[str], done: int, total: int, start: float, now: float) -> str | None:
+    """Job ``num`` (its override strings: ``given``; started at ``start``) did ``done`` of ``total`` steps. Returns a
+    line when they time its kind first (no job of its kind ended, none said its steps) and the job still needs
+    over STEP_LINE_AFTER seconds: the sweep's last job line guessed that kind, this one need not wait for an end."""
+    sweep = SweepDir(sweep_dir)
+    header, events = sweep.progress_with({"steps": num, "t": now, "done": done, "of": total})
+    kinds = header.get("kinds") or []
+    if not (isinstance(num, int) and 0 <= num < len(kinds)):
+        return None
+    mine = {n for n, k in enumerate(kinds) if k == kinds[num]}
+    ended = len({e["end"] for e in events if "end" in e})
+    if not ended or any(e.get("end") in mine or e.get("said") in mine for e in events):
+        return None  # before the first end, no line guessed the kind; after one of its own, the lines time it
+    guess = estimate(header, events, now)
+    rate = rates_of(events).get(num)
+    if guess is None or rate is None or rate[0] * (total - done) < STEP_LINE_AFTER:
+        return None
+    sweep.add_progress({"said": num, "t": now})
+    seconds, untimed = guess
+    left = f"{'at least' if untimed else 'about'} {_clock(seconds)} left"
+    elapsed = _clock(now - float(header.get("start", now)))
+    where = f"#{num} {_which(header, given)}: step {done} of {total} in {now - start:.0f} s"
+    return f"[{ended}/{header['jobs']} ended] {where}; sweep {elapsed}, {left}"
+
+
 def _clock(seconds: float) -> str:
     m, s = divmod(int(round(seconds)), 60)
     return f"{m // 60}:{m % 60:02d}:{s:02d}" if m >= 60 else f"{m}:{s:02d}"
@@ -135,8 +163,9 @@ def _short(value: str) -> str:
 
 
 def left_text(header: dict, done: int, now: float) -> str:
-    """The job line's end: ", about m:ss left", with how many jobs it guesses for (of a kind none of whose jobs
-    ended yet); elapsed / done x remaining where no job's time is known (an older progress file)."""
+    """The job line's end: ", about m:ss left"; ", at least m:ss left" with how many jobs it could not time (of a
+    kind with no ended job and no running job's steps); elapsed / done x remaining where no job's time is known
+    (an older progress file)."""
     jobs = header.get("jobs")
     if not jobs or done >= jobs:
         return ""
@@ -148,7 +177,7 @@ def left_text(header: dict, done: int, now: float) -> str:
     if not untimed:
         return f", about {_clock(seconds)} left"
     kinds = "a kind" if untimed == 1 else "kinds"
-    return f", about {_clock(seconds)} left ({count(untimed, 'job')} of {kinds} not timed yet)"
+    return f", at least {_clock(seconds)} left ({count(untimed, 'job')} of {kinds} not timed yet)"
 
 
 def record_of(job_return: Any):
@@ -164,10 +193,7 @@ def job_line(header: dict, done: int, num, job_return: Any, seconds: float, now:
     left``; a failed or interrupted job says so with its error. ``now``: the clock (time.time())."""
     now = time.time() if now is None else now
     jobs = header.get("jobs")
-    given = map(parse_override, getattr(job_return, "overrides", None) or [])
-    overrides = {o.written_key: o.value for o in given if o.value is not None}  # as _swept_values names them
-    swept = header.get("swept") or [k for k in ("objective", "seed") if k in overrides]
-    which = " ".join(f"{k}={_short(overrides[k])}" for k in swept if k in overrides)
+    which = _which(header, getattr(job_return, "overrides", None) or [])
     record = record_of(job_return)
     if isinstance(record, BaseException):
         outcome = f"failed ({type(record).__name__}: {record})"
@@ -182,6 +208,13 @@ def job_line(header: dict, done: int, num, job_return: Any, seconds: float, now:
     outcome = outcome.splitlines()[0][:160]
     left = left_text(header, done, now)
     return f"[{count_}] #{num} {which}: {outcome} in {seconds:.0f} s; sweep {_clock(elapsed)}{left}"
+
+
+def _which(header: dict, given: list[str]) -> str:
+    """A job's swept values, from its override strings."""
+    overrides = {o.written_key: o.value for o in map(parse_override, given) if o.value is not None}
+    swept = header.get("swept") or [k for k in ("objective", "seed") if k in overrides]  # as _swept_values names them
+    return " ".join(f"{k}={_short(overrides[k])}" for k in swept if k in overrides)
 
 
 def headline(results) -> str | None:

@@ -27,8 +27,17 @@ from hydra.experimental.callback import Callback
 from hydra.types import RunMode
 from omegaconf import DictConfig
 
+from hybrid_sysid.core import steps
 from hybrid_sysid.core.words import count
-from hybrid_sysid.launch.progress import count_done, header_of, job_line, mark_start, record_of, start_line
+from hybrid_sysid.launch.progress import (
+    count_done,
+    header_of,
+    job_line,
+    mark_start,
+    mark_steps,
+    record_of,
+    start_line,
+)
 from hybrid_sysid.launch.state import PROCESS
 from hybrid_sysid.launch.time_left import work_seconds
 from hybrid_sysid.runs.sweepdir import SweepDir
@@ -85,12 +94,22 @@ class SweepSummary(Callback):
         self._cold = not PROCESS.jobs  # this process's first job pays its imports (progress: time_left)
         PROCESS.jobs += 1
         if config.hydra.mode == RunMode.MULTIRUN:
+            sweep_dir, num = Path(config.hydra.sweep.dir), config.hydra.job.num
             try:
-                mark_start(Path(config.hydra.sweep.dir), config.hydra.job.num, self._job_start, os.getpid())
+                mark_start(sweep_dir, num, self._job_start, os.getpid())
             except Exception as exc:  # noqa: BLE001 - the estimate then counts the job as not started
                 log.info("no progress start: %s: %s", type(exc).__name__, exc)
+            given, start = list(config.hydra.overrides.task), self._job_start
+
+            def heard(done: int, total: int) -> None:  # the job's training reports its steps (core.steps)
+                line = mark_steps(sweep_dir, num, given, done, total, start, time.time())
+                if line:
+                    print(line, flush=True)
+
+            steps.listen(heard)
 
     def on_job_end(self, config: DictConfig, job_return: Any = None, **kwargs: Any) -> None:
+        steps.listen(None)
         if config.hydra.mode != RunMode.MULTIRUN:
             return
         try:

@@ -1,6 +1,7 @@
-"""A sweep's time left, from the starts and ends its jobs wrote to the progress file (hybrid_sysid.launch.progress).
+"""A sweep's time left, from the starts, steps and ends its jobs wrote to the progress file
+(hybrid_sysid.launch.progress).
 
-Elapsed / done x remaining, the first estimate, said "about 32:36 left" when 2:16 remained. Three things made it
+Elapsed / done x remaining, the first estimate, said "about 32:36 left" when 2:16 remained. Four things made it
 wrong, and each has its answer here:
 
 - Start-up. A worker's first job pays the imports (seconds: benchmarks/README.md) and, with a cold cache, the
@@ -12,8 +13,12 @@ wrong, and each has its answer here:
   are laid on n workers, each next job on the first worker free, after what the running ones still need.
 - Jobs of different kinds (baselines take seconds, networks minutes). A job's kind is its swept values but the
   seed; a kind's time is the mean of its ended jobs. In a re-run sweep, a kind whose jobs only ended at once
-  (completed before) takes the work their records give. A kind not timed yet counts at the mean of those
-  timed, and the line says how many jobs that guess covers.
+  (completed before) takes the work their records give.
+- A kind none of whose jobs ended yet. Its running job reports its steps (core.steps): the seconds per step since
+  its first twentieth (its first steps warm the libraries up) times its max_steps, plus the overhead, time it
+  minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
+  (``borrowed``) time it. A kind with none of these counts at the overhead alone: the estimate is then a lower
+  bound, and the line says "at least" and how many jobs it did not time.
 """
 
 from __future__ import annotations
@@ -49,10 +54,10 @@ def _cycles(events: list[dict]) -> dict:
     return out
 
 
-def _timed(ends: dict, cycles: dict) -> dict:
+def _timed(ends: dict, cycles: dict) -> tuple[dict, float]:
     """num -> (the seconds a job of its kind takes once the worker is warm, whether it ran warm); jobs that did no
     work of their own (a re-run sweep's completed job ends in less than its recorded work) and failed ones are
-    left out, unless nothing else ended."""
+    left out, unless nothing else ended. And the overhead: a warm job's seconds beyond its work (median)."""
     warm = {}
     for num, e in ends.items():
         seconds, work = e.get("seconds"), e.get("work")
@@ -67,7 +72,7 @@ def _timed(ends: dict, cycles: dict) -> dict:
         if clean is None:  # a cold job: its work and the overhead warm jobs show, at most its own time
             clean = e["seconds"] if e.get("work") is None else min(e["seconds"], e["work"] + overhead)
         (out if e.get("ok", True) else failed)[num] = (clean, warm[num] is not None)
-    return out or failed
+    return out or failed, overhead
 
 
 def _mean(timed: list[tuple[float, bool]]) -> float:
@@ -89,9 +94,63 @@ def concurrency(events: list[dict]) -> int:
     return most
 
 
+SAME = 1.5  # two kinds' times within this factor: the one swept value they differ in does not change a job's time
+PAIRS = 200  # timed kinds at most whose pairs are compared (a sweep of hundreds of kinds: no borrowing)
+
+
+def _parts(kind: str) -> dict[str, str]:
+    return dict(part.partition("=")[::2] for part in kind.split(" ") if part)
+
+
+def borrowed(means: dict[str, float], wanted: set[str]) -> dict[str, float]:
+    """Kinds of ``wanted`` timed by those of ``means`` that differ from them only in keys shown not to change a
+    job's time: every two timed kinds that differ in that key alone took within SAME of each other. So once a
+    baseline ran under two faults as long, a network under the second fault takes its time under the first."""
+    if not wanted or len(means) > PAIRS:
+        return {}
+    parts = {k: _parts(k) for k in {*means, *wanted}}
+
+    def differ(a: str, b: str) -> set[str] | None:
+        return {k for k in parts[a] if parts[a][k] != parts[b][k]} if parts[a].keys() == parts[b].keys() else None
+
+    same: dict[str, bool] = {}
+    timed = sorted(means)
+    for i, a in enumerate(timed):
+        for b in timed[i + 1 :]:
+            keys = differ(a, b)
+            if keys is not None and len(keys) == 1:
+                low, high = sorted((means[a], means[b]))
+                same[next(iter(keys))] = same.get(next(iter(keys)), True) and high <= SAME * max(low, 1e-9)
+    out = {}
+    for kind in wanted:
+        near = [means[t] for t in timed if (keys := differ(kind, t)) and all(same.get(k) for k in keys)]
+        if near:
+            out[kind] = statistics.fmean(near)
+    return out
+
+
+def rates_of(events: list[dict]) -> dict:
+    """num -> (seconds per step, steps done, max_steps, the time of its last report) of a job with three reports
+    or more: from its first twentieth on (its first steps start the data loading and warm the libraries up)."""
+    reports: dict = {}
+    for e in events:
+        if "steps" in e and e.get("t") is not None and e.get("of"):
+            r = reports.setdefault(e["steps"], [])
+            if r and int(e["done"]) < r[-1][1]:  # a job of several fits (a chained experiment's): its latest
+                r.clear()
+            r.append((float(e["t"]), int(e["done"]), int(e["of"])))
+    out = {}
+    for num, r in reports.items():
+        base, last = r[1 if len(r) >= 3 else -1], r[-1]
+        if last[1] > base[1]:
+            out[num] = ((last[0] - base[0]) / (last[1] - base[1]), last[1], last[2], last[0])
+    return out
+
+
 def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] | None:
-    """(seconds until the last job ends, how many of the jobs not ended are of a kind none of whose jobs ended),
-    or None when no ended job has a time (the caller falls back on elapsed / done x remaining)."""
+    """(seconds until the last job ends, how many of the jobs not ended are of a kind with no time: neither an
+    ended job nor a running one's steps; the seconds are then a lower bound), or None when no job has a time (the
+    caller falls back on elapsed / done x remaining)."""
     jobs = header.get("jobs")
     kinds = header.get("kinds") or []
     starts, ends = {}, {}
@@ -101,7 +160,7 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         elif "end" in e:
             if e["end"] not in ends or e.get("seconds") is not None:  # the job's own entry, not the parent's
                 ends[e["end"]] = e
-    timed = _timed(ends, _cycles(events))
+    timed, overhead = _timed(ends, _cycles(events))
 
     def kind(num) -> str:
         return kinds[num] if isinstance(num, int) and 0 <= num < len(kinds) else ""
@@ -117,9 +176,16 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         if num not in timed and e.get("ok", True) and e.get("work") is not None and kind(num) not in means:
             recorded.setdefault(kind(num), []).append(float(e["work"]))
     means.update({k: statistics.fmean(v) for k, v in recorded.items()})
+    running = [n for n in starts if n not in ends]
+    rates = {n: r for n, r in rates_of(events).items() if n in running and kind(n) not in means}
+    stepped: dict[str, list] = {}
+    for num, (rate, _, of, _) in rates.items():  # a kind timed by its running jobs' steps alone
+        stepped.setdefault(kind(num), []).append(rate * of + overhead)
+    means.update({k: statistics.fmean(v) for k, v in stepped.items()})
+    means.update(borrowed(means, {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)))
     if not jobs or not means:
         return None
-    mean = _mean(list(timed.values())) if timed else statistics.fmean(means.values())
+    floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
     untimed = 0
 
     def expected(num) -> float:
@@ -127,11 +193,17 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         if kind(num) in means:
             return means[kind(num)]
         untimed += 1
-        return mean
+        return floor
+
+    def still(num) -> float:
+        """What running job ``num`` still needs: by its own steps where its kind has no ended job."""
+        if num in rates:
+            rate, done, of, at = rates[num]
+            return max(rate * (of - done) - (now - at), 0.0) + overhead
+        return max(expected(num) - (now - float(starts[num] or now)), 0.0)
 
     workers = header.get("at_once") or concurrency(events)
-    running = [n for n in starts if n not in ends]
-    slots = [max(expected(n) - (now - float(starts[n] or now)), 0.0) for n in running]
+    slots = [still(n) for n in running]
     slots += [0.0] * max(int(workers) - len(slots), 0)
     heapq.heapify(slots)
     waiting = [n for n in range(int(jobs)) if n not in starts and n not in ends]

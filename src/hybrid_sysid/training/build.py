@@ -17,7 +17,7 @@ from hybrid_sysid.data.spec import DatasetSpec
 from hybrid_sysid.model.module import LOG_EVERY, IdentificationModule
 from hybrid_sysid.runs.layout import CONFIG
 from hybrid_sysid.runs.rundir import RunDir
-from hybrid_sysid.training.callbacks import AtomicCheckpointIO, StopAtSafePoints, ValidateAtEnd
+from hybrid_sysid.training.callbacks import AtomicCheckpointIO, StepReports, StopAtSafePoints, ValidateAtEnd
 from hybrid_sysid.training.data_arguments import window_arguments
 from hybrid_sysid.training.recordings import recordings_datamodule
 
@@ -76,7 +76,7 @@ def build_trainer(cfg: DictConfig, run_dir, callbacks=(), loggers=(), **override
     experiment trackers (hybrid_sysid.training.tracking); none by default. trainer.extra and then ``overrides``
     may replace any argument."""
     t = cfg.trainer
-    callbacks = [StopAtSafePoints(), ValidateAtEnd(), *callbacks]
+    callbacks = [StopAtSafePoints(), ValidateAtEnd(), StepReports(), *callbacks]
     bar = L.pytorch.callbacks.ProgressBar
     show_bar = progress_bar_on(t.progress_bar)
     if not show_bar:  # bars off (a parallel launcher's workers, a log file): a configured bar too

@@ -15,7 +15,7 @@ import lightning as L
 import torch
 from lightning.pytorch.plugins.io import TorchCheckpointIO
 
-from hybrid_sysid.core import stop
+from hybrid_sysid.core import steps, stop
 from hybrid_sysid.core.checks import Shown, bad
 from hybrid_sysid.core.files import write_atomic
 from hybrid_sysid.model.metrics import summarise
@@ -177,3 +177,28 @@ class ValidateAtEnd(L.Callback):
     def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
         if trainer.max_steps > 0 and trainer.global_step >= trainer.max_steps:
             trainer.should_stop = True
+
+
+class StepReports(L.Callback):
+    """The optimiser steps to whoever listens (core.steps: a sweep's worker), on rank 0: at the first step and at
+    each twentieth of trainer.max_steps, so a sweep times a kind of job before one of its jobs ends."""
+
+    def __init__(self):
+        self.next = 0
+
+    def on_train_start(self, trainer, pl_module) -> None:
+        self.next = trainer.global_step
+        self._report(trainer)
+
+    def on_train_batch_end(self, trainer, pl_module, outputs, batch, batch_idx) -> None:
+        if trainer.global_step >= self.next:
+            self._report(trainer)
+
+    def _report(self, trainer) -> None:
+        total = trainer.max_steps
+        if total <= 0 or not trainer.is_global_zero or not steps.listening():
+            self.next = float("inf")  # nobody listens for this fit: one check a step
+            return
+        steps.report(trainer.global_step, total)
+        every = max(total // steps.PARTS, 1)
+        self.next = (trainer.global_step // every + 1) * every
