@@ -12,7 +12,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config.targets import build
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.data.recordings_files import UNNAMED, index, split_recordings
-from hybrid_sysid.data.spec import DT_RTOL, MIN_FILTERED, DatasetSpec
+from hybrid_sysid.data.spec import DT_RTOL, MIN_FILTERED, DatasetSpec, check_eval_windows
 from hybrid_sysid.physics.sensors import SensorFaults
 
 LABEL_MONITORS = ("val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev")  # what model selection reads labels through
@@ -108,14 +108,17 @@ def check_label_free(cfg: DictConfig, objective) -> None:
 
 
 def check_windows(cfg: DictConfig, idx, short: int) -> None:
-    """Every K of evaluation.windows fits in the shortest recording (distinct window starts)."""
+    """Every K of evaluation.windows fits in the shortest recording (distinct window starts): the range of
+    data.spec.check_eval_windows, in words naming that recording."""
     ks = list(cfg.evaluation.windows)
     r = idx.recordings[short]
     starts = r.steps - int(cfg.data.window) + 1
-    if any(not isinstance(k, int) or isinstance(k, bool) or not 1 <= k <= starts for k in ks):
+    try:
+        check_eval_windows(ks, starts, "evaluation.windows")
+    except ConfigError:
         bad(
             "evaluation.windows",
             ks,
-            f"K in [1, {starts}]: the window starts of the shortest recording, {r.name!r} of {r.file} ({r.steps} "
-            f"steps, data.window = {cfg.data.window})",
+            f"a non-empty list of K in [1, {starts}]: the window starts of the shortest recording, {r.name!r} of "
+            f"{r.file} ({r.steps} steps, data.window = {cfg.data.window})",
         )
