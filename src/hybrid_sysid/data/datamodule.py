@@ -9,7 +9,8 @@ from torch.utils.data import DataLoader
 
 from hybrid_sysid.data.cache import get_dataset
 from hybrid_sysid.data.dataset import SimulatedDataset
-from hybrid_sysid.data.spec import BatchSettings, DatasetSpec, WindowSettings, check_eval_windows
+from hybrid_sysid.data.serving import Serving, takes_serving
+from hybrid_sysid.data.spec import DatasetSpec, WindowSettings, check_eval_windows
 from hybrid_sysid.data.splits import SPLITS
 from hybrid_sysid.data.windows import RandomWindows, WindowCutter, start_state
 from hybrid_sysid.physics import integrate
@@ -34,38 +35,37 @@ class QuarterCarDataModule(L.LightningDataModule):
     evaluation batches then carry; ``outside_target`` that fit, "eiv" or "ls" (the objective's; None: "ls").
     """
 
+    @takes_serving
     def __init__(
         self,
         spec: DatasetSpec,
         cache_dir: str | None = None,
-        window: int = 500,
-        batch_size: int = 64,
-        eval_batch_size: int = 256,
-        train_fraction: float = 0.8,
-        val_fraction: float = 0.125,
-        train_std: float = 0.0,
-        seed: int = 0,
-        integration: str = "t0",
-        fir: np.ndarray | None = None,
-        train_std_max: float | None = None,
-        outside_fir: np.ndarray | None = None,
-        outside_target: str | None = None,
+        *,
+        train_fraction: float = WindowSettings.train_fraction,
+        val_fraction: float = WindowSettings.val_fraction,
+        **serving,
     ):
+        """``serving``: Serving's keyword arguments (window, batch_size, eval_batch_size, train_std, seed,
+        integration, fir, train_std_max, outside_fir, outside_target)."""
         super().__init__()
+        served = Serving(**serving)
         spec.validate()
-        self.settings = WindowSettings(window, integration, train_fraction, val_fraction)
-        outside_taps = None if outside_fir is None else len(outside_fir)
-        self.settings.validate(spec, taps=None if fir is None else len(fir), outside_taps=outside_taps)
-        self.batch_settings = BatchSettings(batch_size, train_std, train_std_max)
-        self.batch_settings.validate()
+        self.settings = WindowSettings(served.window, served.integration, train_fraction, val_fraction)
+        taps, outside_taps = (None if f is None else len(f) for f in (served.fir, served.outside_fir))
+        self.settings.validate(spec, taps=taps, outside_taps=outside_taps)
+        self._serve(served)
         self.split = self.settings.split(spec)
-        self.spec, self.cache_dir, self.window = spec, cache_dir, window
-        self.batch_size, self.eval_batch_size = batch_size, eval_batch_size
-        self.train_std, self.seed = float(train_std), seed
-        self.integration, self.fir, self.outside_fir = integration, fir, outside_fir
-        self.outside_target = outside_target
-        self.train_std_max = None if train_std_max is None else float(train_std_max)
+        self.spec, self.cache_dir = spec, cache_dir
         self.dataset: SimulatedDataset | None = None
+
+    def _serve(self, served: Serving) -> None:
+        """Checks ``served``'s batches and keeps its values as the attributes the run and the windows read."""
+        self.batch_settings = served.batches
+        self.batch_settings.validate()
+        self.window, self.batch_size, self.eval_batch_size = served.window, served.batch_size, served.eval_batch_size
+        self.train_std, self.seed, self.integration = float(served.train_std), served.seed, served.integration
+        self.train_std_max = None if served.train_std_max is None else float(served.train_std_max)
+        self.fir, self.outside_fir, self.outside_target = served.fir, served.outside_fir, served.outside_target
         self.data: WindowCutter | None = None
         self.train_windows: RandomWindows | None = None
         self._eval_cache: dict = {}
@@ -77,13 +77,19 @@ class QuarterCarDataModule(L.LightningDataModule):
 
     def setup(self, stage: str | None = None) -> None:
         if self.data is None:
-            if self.dataset is None:  # a DDP rank other than 0 (prepare_data ran elsewhere), or no fit
-                self.dataset = self._get_dataset()
-            self.data = WindowCutter(
-                self.dataset, self.window, self.integration, self.fir, self.outside_fir, self.outside_target
+            self.data = self._training_cutter()
+            std, std_max = self.train_std, self.train_std_max
+            self.train_windows = RandomWindows(
+                self.data, self.rows("train"), self.batch_size, self.seed, std, noise_std_max=std_max
             )
-            rows, std, std_max = self.split.train, self.train_std, self.train_std_max
-            self.train_windows = RandomWindows(self.data, rows, self.batch_size, self.seed, std, noise_std_max=std_max)
+
+    def _training_cutter(self) -> WindowCutter:
+        if self.dataset is None:  # a DDP rank other than 0 (prepare_data ran elsewhere), or no fit
+            self.dataset = self._get_dataset()
+        return self._cut(self.dataset)
+
+    def _cut(self, dataset) -> WindowCutter:
+        return WindowCutter(dataset, self.window, self.integration, self.fir, self.outside_fir, self.outside_target)
 
     def _get_dataset(self) -> SimulatedDataset:
         # simulating runs numba's parallel kernel, whose OpenMP runtime torch shares: it leaves torch at numba's

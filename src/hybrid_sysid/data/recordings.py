@@ -22,9 +22,9 @@ import numpy as np
 
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.recordings_files import RecordingsIndex, read_recordings
-from hybrid_sysid.data.spec import BatchSettings
+from hybrid_sysid.data.serving import Serving, takes_serving
 from hybrid_sysid.data.splits import Split
-from hybrid_sysid.data.windows import RandomWindows, WindowCutter
+from hybrid_sysid.data.windows import WindowCutter
 from hybrid_sysid.physics import relative_states
 
 REFERENCE = "fit over the whole recording"  # what the test rows measure against without labels
@@ -97,9 +97,10 @@ def load_split(idx: RecordingsIndex, wanted: np.ndarray, spec: RecordedSpec, par
 class RecordingsDataModule(QuarterCarDataModule):
     """The recordings of data.path in windows (module docstring). ``labels``: (params (n, 2), m3 (n,)) in the
     index's order, or None, and ``labels_file`` their file's fingerprint; ``reference``: the fit of whole recordings
-    without labels (training.recordings passes the errors-in-variables fit). The other arguments are
-    QuarterCarDataModule's."""
+    without labels (training.recordings passes the errors-in-variables fit); ``serving``: Serving's keyword
+    arguments, as QuarterCarDataModule takes them."""
 
+    @takes_serving
     def __init__(
         self,
         idx: RecordingsIndex,
@@ -108,33 +109,15 @@ class RecordingsDataModule(QuarterCarDataModule):
         reference: Fit,
         labels: tuple[np.ndarray, np.ndarray] | None = None,
         labels_file: dict | None = None,
-        window: int = 500,
-        batch_size: int = 64,
-        eval_batch_size: int = 256,
-        train_std: float = 0.0,
-        seed: int = 0,
-        integration: str = "t0",
-        fir: np.ndarray | None = None,
-        train_std_max: float | None = None,
-        outside_fir: np.ndarray | None = None,
-        outside_target: str | None = None,
+        **serving,
     ):
         L.LightningDataModule.__init__(self)  # the simulated module's own __init__ reads a simulation's spec
-        self.batch_settings = BatchSettings(batch_size, train_std, train_std_max)
-        self.batch_settings.validate()
+        self._serve(Serving(**serving))
         self.index, self.split, self.labels, self.reference_fit = idx, split, labels, reference
         self.labels_file = labels_file
         self.spec = RecordedSpec(idx.dt, measurement, int(idx.steps.max()))
         self.dataset = DatasetView(self.spec)
-        self.cache_dir, self.window = None, window
-        self.batch_size, self.eval_batch_size = batch_size, eval_batch_size
-        self.train_std, self.seed = float(train_std), seed
-        self.integration, self.fir, self.outside_fir = integration, fir, outside_fir
-        self.outside_target = outside_target
-        self.train_std_max = None if train_std_max is None else float(train_std_max)
-        self.data: WindowCutter | None = None
-        self.train_windows: RandomWindows | None = None
-        self._eval_cache: dict = {}
+        self.cache_dir = None
         self._other: tuple[str, WindowCutter] | None = None  # the one other split whose samples are held
         self._params: dict[str, np.ndarray] = {}  # each split's reference fits, once computed
 
@@ -146,11 +129,8 @@ class RecordingsDataModule(QuarterCarDataModule):
     def prepare_data(self) -> None:
         pass  # the files are read where they are, split by split
 
-    def setup(self, stage: str | None = None) -> None:
-        if self.data is None:
-            self.data = self._load("train")
-            rows, std, std_max = self.rows("train"), self.train_std, self.train_std_max
-            self.train_windows = RandomWindows(self.data, rows, self.batch_size, self.seed, std, noise_std_max=std_max)
+    def _training_cutter(self) -> WindowCutter:
+        return self._load("train")
 
     def _load(self, split: str) -> WindowCutter:
         wanted = getattr(self.split, split)
@@ -159,7 +139,7 @@ class RecordingsDataModule(QuarterCarDataModule):
             params = self.labels[0][wanted]
         ds = load_split(self.index, wanted, self.spec, params, self.reference_fit)
         self._params[split] = ds.params
-        return WindowCutter(ds, self.window, self.integration, self.fir, self.outside_fir, self.outside_target)
+        return self._cut(ds)
 
     def cutter(self, split: str) -> WindowCutter:
         """The training split's windows, or another split's, read from the files when it is not the one held."""
