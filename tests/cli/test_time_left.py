@@ -280,6 +280,30 @@ def test_a_step_line_once_for_a_kind_not_timed_yet(tmp_path):
     assert 270 > STEP_LINE_AFTER
 
 
+def test_no_step_line_for_a_kind_timed_by_kinds_as_long(tmp_path):
+    """A network under a second fault, once a baseline took as long under both faults and the network ended under
+    the first: its kind is timed already (time_left.borrowed), the last line said "about", so its steps print
+    nothing; the estimate times it at the first fault's network."""
+    from hybrid_sysid.launch.progress import mark_steps
+
+    kinds = ["fault=a est=ls", "fault=b est=ls", "fault=a est=cnn", "fault=b est=cnn"]
+    header = {"jobs": 4, "swept": ["fault", "est"], "start": 0.0, "at_once": 1, "kinds": kinds}
+    (tmp_path / ".progress").write_text(json.dumps(header) + "\n")
+    t = 0.0
+    for num, seconds in enumerate([10.0, 10.0, 100.0]):  # one warm worker: each takes 2 s beyond its work
+        mark_start(tmp_path, num, t, pid=1)
+        t += seconds
+        count_done(tmp_path, num, {"t": t, "seconds": seconds, "cold": False, "pid": 1, "work": seconds - 2.0})
+    mark_start(tmp_path, 3, t, pid=1)
+    for done, at in ((0, 1.0), (15, 16.0), (30, 31.0)):  # 1 s a step: 300 s, where the first fault's took 100 s
+        assert mark_steps(tmp_path, 3, ["fault=b", "est=cnn"], done, 300, t, t + at) is None
+    header, *events = map(json.loads, (tmp_path / ".progress").read_text().splitlines())
+    seconds, untimed = estimate(header, [e for e in events if "steps" not in e], t + 31.0)
+    assert untimed == 0 and seconds == pytest.approx(100.0 - 31.0)
+    # with its steps the job's own rate wins: 270 steps at 1 s and the 2 s beyond the work
+    assert estimate(header, events, t + 31.0) == (pytest.approx(270.0 + 2.0), 0)
+
+
 def test_a_jobs_step_rate_leaves_its_first_twentieth_and_earlier_fits_out():
     """rates_of: seconds per step from a job's second report on (its first steps load data and warm libraries
     up); a job of several fits (a chained experiment's) is timed by its latest fit alone."""

@@ -126,8 +126,9 @@ STEP_LINE_AFTER = 30.0  # seconds: a job of a kind not timed yet that still need
 
 def mark_steps(sweep_dir: Path, num, given: list[str], done: int, total: int, start: float, now: float) -> str | None:
     """Job ``num`` (its override strings: ``given``; started at ``start``) did ``done`` of ``total`` steps. Returns a
-    line when they time its kind first (no job of its kind ended, none said its steps) and the job still needs
-    over STEP_LINE_AFTER seconds: the sweep's last job line guessed that kind, this one need not wait for an end."""
+    line when they time its kind first (no job of its kind ended, none said its steps, no other kind timed it) and
+    the job still needs over STEP_LINE_AFTER seconds: the last job line said "at least", this one need not wait for
+    an end."""
     sweep = SweepDir(sweep_dir)
     header, events = sweep.progress_with({"steps": num, "t": now, "done": done, "of": total})
     kinds = header.get("kinds") or []
@@ -140,6 +141,9 @@ def mark_steps(sweep_dir: Path, num, given: list[str], done: int, total: int, st
     guess = estimate(header, events, now)
     rate = rates_of(events).get(num)
     if guess is None or rate is None or rate[0] * (total - done) < STEP_LINE_AFTER:
+        return None
+    blind = estimate(header, [e for e in events if e.get("steps") not in mine], now)
+    if blind is not None and blind[1] == guess[1]:  # its kind was timed already (by kinds that take as long)
         return None
     sweep.add_progress({"said": num, "t": now})
     seconds, untimed = guess
