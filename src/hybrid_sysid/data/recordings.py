@@ -23,6 +23,7 @@ import numpy as np
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.data.recordings_files import RecordingsIndex, read_recordings
 from hybrid_sysid.data.serving import Serving, takes_serving
+from hybrid_sysid.data.spec import starts_offered
 from hybrid_sysid.data.splits import Split
 from hybrid_sysid.data.windows import WindowCutter
 from hybrid_sysid.physics import relative_states
@@ -161,7 +162,7 @@ class RecordingsDataModule(QuarterCarDataModule):
 
     def n_starts(self) -> int:
         """How many window starts the shortest recording offers (a K must fit in every recording)."""
-        return int(self.index.steps.min()) - self.window + 1
+        return int(starts_offered(self.index.steps.min(), self.window))
 
     def recording_columns(self, split: str) -> dict[str, np.ndarray]:
         """predictions.csv's columns of the split's recordings: their names, no road class, m3 when labelled."""

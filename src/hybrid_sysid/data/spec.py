@@ -190,7 +190,12 @@ class WindowSettings:
 
     def n_starts(self, spec: DatasetSpec) -> int:
         """How many window starts a recording offers."""
-        return spec.n_steps - self.window + 1
+        return starts_offered(spec.n_steps, self.window)
+
+
+def starts_offered(n_steps, window):
+    """How many window starts a recording of ``n_steps`` offers (an array of lengths: a count for each)."""
+    return n_steps - window + 1
 
 
 def window_starts(n_steps: int, window: int, k: int) -> np.ndarray:

@@ -16,6 +16,7 @@ from hybrid_sysid.core.checks import check_choice
 from hybrid_sysid.core.options import INTEGRATION_RULES
 from hybrid_sysid.data.dataset import SimulatedDataset
 from hybrid_sysid.data.outside import OutsideFit
+from hybrid_sysid.data.spec import starts_offered
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.filters import fir_valid
 
@@ -144,9 +145,8 @@ class WindowCutter:
     def starts_bound(self, rows: np.ndarray):
         """How many window starts each row's recording offers: one number for recordings of one length, else one
         per row (an upper bound for numpy's Generator.integers either way)."""
-        if self.lengths is None:
-            return self.n_steps - self.window + 1
-        return self.lengths[np.asarray(rows, dtype=np.int64)] - self.window + 1
+        steps = self.n_steps if self.lengths is None else self.lengths[np.asarray(rows, dtype=np.int64)]
+        return starts_offered(steps, self.window)
 
     def batch(
         self, rows, starts, noise: np.ndarray | None = None, state: np.ndarray | None = None
