@@ -318,3 +318,24 @@ def test_a_jobs_step_rate_leaves_its_first_twentieth_and_earlier_fits_out():
     assert rates_of(later) == {4: (2.0, 15, 100, 50.0)}
     second_fit = later + reports((60.0, 0, 40), (61.0, 2, 40), (64.0, 4, 40))  # 1.5 s a step
     assert rates_of(second_fit) == {4: (1.5, 4, 40, 64.0)}
+
+
+def test_kinds_compared_by_their_work_not_a_new_faults_dataset_load():
+    """The first jobs under a new fault load its dataset (10 s here) besides their 1 s of fits: their fits, not
+    their time, show the fault does not change a job's time, so the network under it is timed by the first
+    fault's network at once; a fault whose fits took three times as long times nothing."""
+    kinds = ["fault=a est=ls"] * 2 + ["fault=a est=cnn"] * 2 + ["fault=b est=ls"] * 2 + ["fault=b est=cnn"] * 2
+    header = {"jobs": 8, "start": 0.0, "at_once": 1, "kinds": kinds}
+
+    def sweep(fits_b):
+        events, t = [], 0.0
+        for num, (seconds, work) in enumerate([(3, 1), (3, 1), (100, 98), (100, 98), (12 + fits_b, fits_b)]):
+            events.append({"start": num, "t": t, "pid": 1})
+            t += seconds
+            events.append({"end": num, "t": t, "seconds": seconds, "cold": False, "pid": 1, "work": work, "ok": True})
+        return estimate(header, events, t)
+
+    seconds, untimed = sweep(fits_b=1.0)
+    # three jobs left on one worker: fault b's second ls at its first's 13 s, two networks at fault a's 100 s
+    assert untimed == 0 and seconds == pytest.approx(13.0 + 2 * 100.0)
+    assert sweep(fits_b=3.0)[1] == 2  # 3 s of fits against 1 s: fault b's networks are not timed

@@ -94,7 +94,8 @@ def concurrency(events: list[dict]) -> int:
     return most
 
 
-SAME = 1.5  # two kinds' times within this factor: the one swept value they differ in does not change a job's time
+SAME = 1.5  # two kinds' work within this factor...
+SLACK = 1.0  # ...and this many seconds: the one swept value they differ in does not change a job's time
 PAIRS = 200  # timed kinds at most whose pairs are compared (a sweep of hundreds of kinds: no borrowing)
 
 
@@ -102,10 +103,12 @@ def _parts(kind: str) -> dict[str, str]:
     return dict(part.partition("=")[::2] for part in kind.split(" ") if part)
 
 
-def borrowed(means: dict[str, float], wanted: set[str]) -> dict[str, float]:
+def borrowed(means: dict[str, float], wanted: set[str], works: dict[str, float]) -> dict[str, float]:
     """Kinds of ``wanted`` timed by those of ``means`` that differ from them only in keys shown not to change a
-    job's time: every two timed kinds that differ in that key alone took within SAME of each other. So once a
-    baseline ran under two faults as long, a network under the second fault takes its time under the first."""
+    job's time: every two timed kinds that differ in that key alone did as much work (``works``, else ``means``:
+    within SAME and SLACK). So once a baseline's fits under two faults took as long, a network under the second
+    fault takes its time under the first. Work, not a job's time: the first jobs under a new fault also load its
+    dataset, once."""
     if not wanted or len(means) > PAIRS:
         return {}
     parts = {k: _parts(k) for k in {*means, *wanted}}
@@ -119,8 +122,8 @@ def borrowed(means: dict[str, float], wanted: set[str]) -> dict[str, float]:
         for b in timed[i + 1 :]:
             keys = differ(a, b)
             if keys is not None and len(keys) == 1:
-                low, high = sorted((means[a], means[b]))
-                same[next(iter(keys))] = same.get(next(iter(keys)), True) and high <= SAME * max(low, 1e-9)
+                low, high = sorted((works.get(a, means[a]), works.get(b, means[b])))
+                same[next(iter(keys))] = same.get(next(iter(keys)), True) and high <= SAME * low + SLACK
     out = {}
     for kind in wanted:
         near = [means[t] for t in timed if (keys := differ(kind, t)) and all(same.get(k) for k in keys)]
@@ -169,6 +172,10 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     for num, t in timed.items():
         by_kind.setdefault(kind(num), []).append(t)
     means = {k: _mean(v) for k, v in by_kind.items()}
+    works: dict[str, list] = {}
+    for num, e in ends.items():
+        if e.get("work") is not None and (num in timed or kind(num) not in means):
+            works.setdefault(kind(num), []).append(float(e["work"]))
     # a re-run sweep's completed jobs end at once, but their records say what a job of their kind took: that
     # times a kind none of whose jobs has run here yet (a resumed sweep of networks and baselines mixed)
     recorded: dict[str, list] = {}
@@ -180,9 +187,11 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     rates = {n: r for n, r in rates_of(events).items() if n in running and kind(n) not in means}
     stepped: dict[str, list] = {}
     for num, (rate, _, of, _) in rates.items():  # a kind timed by its running jobs' steps alone
-        stepped.setdefault(kind(num), []).append(rate * of + overhead)
-    means.update({k: statistics.fmean(v) for k, v in stepped.items()})
-    means.update(borrowed(means, {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)))
+        stepped.setdefault(kind(num), []).append(rate * of)
+        works.setdefault(kind(num), []).append(rate * of)
+    means.update({k: statistics.fmean(v) + overhead for k, v in stepped.items()})
+    wanted = {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)
+    means.update(borrowed(means, wanted, {k: statistics.fmean(v) for k, v in works.items()}))
     if not jobs or not means:
         return None
     floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
