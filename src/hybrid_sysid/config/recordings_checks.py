@@ -12,7 +12,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config.targets import build
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.data.recordings_files import UNNAMED, index, split_recordings
-from hybrid_sysid.data.spec import DT_RTOL, MIN_FILTERED, DatasetSpec, check_eval_windows
+from hybrid_sysid.data.spec import DT_RTOL, MIN_FILTERED, DatasetSpec, check_eval_windows, starts_offered
 from hybrid_sysid.physics.sensors import SensorFaults
 
 LABEL_MONITORS = ("val/rel_dev", "val/p1_rel_dev", "val/p2_rel_dev")  # what model selection reads labels through
@@ -112,7 +112,7 @@ def check_windows(cfg: DictConfig, idx, short: int) -> None:
     data.spec.check_eval_windows, in words naming that recording."""
     ks = list(cfg.evaluation.windows)
     r = idx.recordings[short]
-    starts = r.steps - int(cfg.data.window) + 1
+    starts = starts_offered(r.steps, int(cfg.data.window))
     try:
         check_eval_windows(ks, starts, "evaluation.windows")
     except ConfigError:
