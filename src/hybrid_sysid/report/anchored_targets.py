@@ -22,7 +22,7 @@ from hybrid_sysid.report.stats import CONFIDENCE, wilcoxon_p
 from hybrid_sysid.runs.layout import PREDICTIONS
 
 CANDIDATES = ("anchored_cross_segment", "anchored_label_free")  # the label-free anchored estimators
-CLASSICAL = ("ls", "eiv", "eiv_map")  # the fits without a network, fixes aside
+CLASSICAL = ("ls", "eiv", "eiv_map", "eiv_bayes")  # the fits without a network, fixes aside
 READ = (*CANDIDATES, *CLASSICAL, "eiv_fix")  # the estimators whose predictions the table pairs
 EXACT = 1e-4  # 0.01%: "exact" on clean consistent windows
 RESAMPLES = 2000

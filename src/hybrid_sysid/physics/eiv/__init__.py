@@ -29,7 +29,8 @@ Where the rest is (plain numpy, each module's docstring has its part): ``model``
 (discrete, continuous) as transfer polynomials on the DFT's grid; ``criterion``, V and its derivatives;
 ``newton``, the damped Newton minimiser; ``fit``, ``fit_eiv`` with its standard errors and the MAP fit;
 ``faults`` and ``fault_criterion``, a recording fault fitted with p; ``bound``, ``crb_relative_std``;
-``prior``, ``log_p_prior``; ``matrices``, the small matrices' algebra.
+``prior``, ``log_p_prior``; ``posterior``, the Bayes estimate under the simulator's exact prior
+(``bayes_fit``); ``matrices``, the small matrices' algebra.
 """
 
 from hybrid_sysid.physics.eiv.bound import crb_relative_std
