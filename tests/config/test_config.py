@@ -30,7 +30,7 @@ BAD = [
     (["data.train_fraction=1.0"], r"data.train_fraction = 1.0 is not allowed: must lie in \(0, 1\)"),
     (["data.train_fraction=0"], r"data.train_fraction = 0.0 is not allowed: must lie in \(0, 1\)"),
     (["data.m3_min=150", "data.m3_max=100"], r"data.m3_max = 100 is not allowed: empty mass range"),
-    (["data.m3_min=-10"], r"data.m3_min = -10 is not allowed: must be > 0 kg"),
+    (["data.m3_min=-10"], r"data.m3_min = -10 is not allowed: must be an integer >= 1"),
     (["road.classes=[A,X]"], r"road.classes = \['A', 'X'\] is not allowed: each class must be one of A, B, C, D, E"),
     (["noise.eval_std=[0.0,-0.01]"], r"noise.eval_std = \[0.0, -0.01\] is not allowed: every standard deviation"),
     (["noise.curve_std=[-0.01]"], r"noise.curve_std = \[-0.01\] is not allowed: a list of standard deviations >= 0"),

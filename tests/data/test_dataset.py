@@ -5,10 +5,13 @@ import dataclasses
 import numpy as np
 import pytest
 
+from hybrid_sysid.core.checks import ConfigError
 from hybrid_sysid.data import DatasetSpec, generate_dataset, get_dataset, split_by_road
 from hybrid_sysid.data import cache as dataset_mod
 from hybrid_sysid.data.datamodule import QuarterCarDataModule
 from hybrid_sysid.physics import QuarterCar
+from hybrid_sysid.physics.eiv import log_p_prior
+from hybrid_sysid.physics.road import road_profiles
 from hybrid_sysid.physics.sensors import SensorFaults
 
 SMALL = DatasetSpec(n_roads=5, n_masses=4, n_steps=300, road_classes=("A", "C", "E"), seed=3)
@@ -270,7 +273,7 @@ BAD = [
     (dict(dt=0.5), r"dt = 0.5 is not allowed: the semi-implicit Euler scheme is unstable above 0.03"),
     (dict(speed=-3.0), r"speed = -3.0 is not allowed: must be > 0"),
     (dict(m3_min=120, m3_max=80), r"m3_max = 80 is not allowed: empty mass range"),
-    (dict(m3_min=-5), r"m3_min = -5 is not allowed: must be > 0"),
+    (dict(m3_min=-5), r"m3_min = -5 is not allowed: must be an integer >= 1"),
     (dict(n_roads=1), r"n_roads = 1 is not allowed: need at least 2 roads"),
     (dict(measurement="exact"), r"measurement = 'exact' is not allowed: one of paper, consistent"),
 ]
@@ -333,3 +336,24 @@ def test_a_cache_directory_that_cannot_be_searched_costs_a_warning(tmp_path, mon
     with pytest.warns(RuntimeWarning, match="cannot be read"):
         ds = get_dataset(SMALL, tmp_path / "locked")
     np.testing.assert_array_equal(ds.seat_acc, small.seat_acc)
+
+
+@pytest.mark.parametrize(
+    "spec_kwargs, physics_call",
+    [
+        (dict(road_classes=("A", "F")), lambda: road_profiles(["A", "F"], 10, 0.005, 15.0)),
+        (dict(speed=-2.0), lambda: road_profiles(["A"], 10, 0.005, -2.0)),
+        (dict(n_waves=1), lambda: road_profiles(["A"], 10, 0.005, 15.0, n_waves=1)),
+        (dict(m3_min=0), lambda: log_p_prior(0, 200, 1.0, 1.0, 0.0)),
+        (dict(m3_min=120, m3_max=80), lambda: log_p_prior(120, 80, 1.0, 1.0, 0.0)),
+        (dict(seat_spread=1.0), lambda: log_p_prior(50, 200, 1.0, 1.0, 1.0)),
+    ],
+)
+def test_the_spec_and_the_physics_refuse_a_range_in_the_same_words(spec_kwargs, physics_call):
+    """Each range has one owner in physics (the road's, the seat draws'), which the dataset's spec calls: a
+    copy would drift, as the road classes' words once did."""
+    with pytest.raises(ConfigError) as from_spec:
+        DatasetSpec(**spec_kwargs).validate()
+    with pytest.raises(ConfigError) as from_physics:
+        physics_call()
+    assert str(from_spec.value) == str(from_physics.value)

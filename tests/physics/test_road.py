@@ -62,7 +62,7 @@ def test_each_class_step_multiplies_the_spectrum_by_four(lo, hi):
 @pytest.mark.parametrize(
     "kwargs, match",
     [
-        (dict(road_classes=["F"]), "road_classes = 'F' is not allowed: each class one of A, B, C, D, E"),
+        (dict(road_classes=["F"]), r"road_classes = \['F'\] is not allowed: each class must be one of A, B, C, D, E"),
         (dict(dt=0.0), "dt = 0.0 is not allowed: must be > 0"),
         (dict(speed=-1.0), "speed = -1.0 is not allowed: must be > 0"),
     ],

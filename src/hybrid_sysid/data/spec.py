@@ -13,12 +13,13 @@ from dataclasses import asdict, dataclass, field, fields
 
 import numpy as np
 
-from hybrid_sysid.core.checks import bad, check_choice, check_dt, check_int, check_number, check_positive
+from hybrid_sysid.core.checks import bad, check_choice, check_dt, check_int, check_number
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, INTEGRATIONS, MEASUREMENTS, ROAD_CLASSES, STEPPED
 from hybrid_sysid.data.splits import Split, split_by_road
 from hybrid_sysid.physics import QuarterCar, stable_dt_limit
+from hybrid_sysid.physics.eiv.prior import check_seat_draws
 from hybrid_sysid.physics.faults import SensorFaults, registered, settings
-from hybrid_sysid.physics.road import OMEGA_M
+from hybrid_sysid.physics.road import OMEGA_M, check_classes, check_drive
 
 # Bump whenever the simulator or the stored layout changes: old cache files are then never loaded.
 SIMULATOR_VERSION = 4  # 2: relative states integrated from seat - body; 3: c3, k3 stored per recording;
@@ -64,22 +65,16 @@ class DatasetSpec:
         """``validate``'s checks of each value, without those of simulating (a user's recordings need only
         these: their step, measurement, car and prior range of p)."""
         check_choice("measurement", self.measurement, MEASUREMENTS)
-        if not self.road_classes:
+        if not self.road_classes:  # a dataset splits its roads by class: none is not a dataset
             bad("road_classes", list(self.road_classes), f"a non-empty list of classes from {', '.join(ROAD_CLASSES)}")
-        if any(c not in ROAD_CLASSES for c in self.road_classes):
-            bad("road_classes", list(self.road_classes), f"each class must be one of {', '.join(ROAD_CLASSES)}")
+        check_classes(self.road_classes)
         if not (isinstance(self.n_roads, int) and self.n_roads >= 2):
             bad("n_roads", self.n_roads, "need at least 2 roads to split by road into train and test")
         check_int("n_masses", self.n_masses, 1)
         check_int("n_steps", self.n_steps, 2)
         check_dt(self.dt)
-        check_positive("speed", self.speed, "m/s")
-        check_int("n_waves", self.n_waves, 2)
-        if not (isinstance(self.m3_min, (int, float)) and self.m3_min > 0):
-            bad("m3_min", self.m3_min, "must be > 0 kg")
-        if not self.m3_max >= self.m3_min:
-            bad("m3_max", self.m3_max, f"empty mass range: must be >= m3_min = {self.m3_min}")
-        check_number("seat_spread", self.seat_spread, 0, 1, high_open=True, unit="a fraction of car.c3 and car.k3")
+        check_drive(self.speed, self.n_waves)
+        check_seat_draws(self.m3_min, self.m3_max, self.seat_spread)
         if not (isinstance(self.seed, int) and 0 <= self.seed <= SEED_MAX):
             bad("seed", self.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
         mismatches = settings("car")  # the car's faults (a hardening seat spring) check their own constants

@@ -20,23 +20,32 @@ OMEGA_1 = 0.02 * np.pi
 OMEGA_M = 6.0 * np.pi
 
 
-def _check_classes(road_classes: Sequence[str]) -> list[str]:
+def check_classes(road_classes: Sequence[str]) -> list[str]:
+    """The road classes as a list; the one range check of ``road_classes`` (data.spec calls it too)."""
     classes = list(road_classes)
-    unknown = sorted({c for c in classes if c not in _CLASS_EXPONENT})
-    if unknown:
-        bad("road_classes", unknown[0], f"each class one of {', '.join(ROAD_CLASSES)}")
+    if any(c not in _CLASS_EXPONENT for c in classes):
+        bad("road_classes", classes, f"each class must be one of {', '.join(ROAD_CLASSES)}")
     return classes
+
+
+def check_drive(speed: float | None = None, n_waves: int | None = None) -> None:
+    """The one range check of the speed and of the number of waves of a road (data.spec calls it too); None: not
+    checked."""
+    if speed is not None:
+        check_positive("speed", speed, "m/s")
+    if n_waves is not None:
+        check_int("n_waves", n_waves, 2)
 
 
 def wave_numbers(n_waves: int = 300) -> np.ndarray:
     """The paper's w_i = w1 + (i - 1) dw, i = 1..M, dw = (wM - w1) / (M - 1), in rad/m."""
-    check_int("n_waves", n_waves, 2)
+    check_drive(n_waves=n_waves)
     return np.linspace(OMEGA_1, OMEGA_M, n_waves)
 
 
 def class_psd(road_class: str) -> float:
     """Phi(w0) = 2^k 1e-6 m^3 for the class (eq. 5)."""
-    (c,) = _check_classes([road_class])
+    (c,) = check_classes([road_class])
     return 2.0 ** _CLASS_EXPONENT[c] * 1e-6
 
 
@@ -51,7 +60,7 @@ def wave_amplitudes(road_class: str, n_waves: int = 300) -> np.ndarray:
 
 def road_amplitudes(road_classes: Sequence[str], n_waves: int = 300) -> np.ndarray:
     """A_i of every road, (n_roads, n_waves), one road per class letter."""
-    classes = _check_classes(road_classes)
+    classes = check_classes(road_classes)
     return np.stack([wave_amplitudes(c, n_waves) for c in classes]) if classes else np.empty((0, n_waves))
 
 
@@ -98,10 +107,10 @@ def road_profiles(
     ConfigError
         An unknown class or a value out of range, naming it.
     """
-    classes = _check_classes(road_classes)
+    classes = check_classes(road_classes)
     check_int("n_steps", n_steps, 1)
     check_dt(dt)
-    check_positive("speed", speed, "m/s")
+    check_drive(speed, n_waves)
     rng = np.random.default_rng(rng)
     phases = road_phases(len(classes), n_waves, rng)
 
