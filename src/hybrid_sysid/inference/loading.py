@@ -15,7 +15,7 @@ from hybrid_sysid.inference.estimator import Estimator
 from hybrid_sysid.inference.inputs import InputError
 from hybrid_sysid.runs.layout import CONFIG
 from hybrid_sysid.runs.rundir import RunDir
-from hybrid_sysid.training.build import build_baseline, build_model, first_misfit
+from hybrid_sysid.training.build import build_baseline, build_model, misfit_words
 
 
 def load_estimator(run_dir: str | Path, checkpoint: str | None = None) -> Estimator:
@@ -96,16 +96,10 @@ def _network(cfg: DictConfig, run: RunDir, path: Path, state: dict) -> torch.nn.
 
 
 def _sizes_fit(cfg: DictConfig, run: RunDir, path: Path, state: dict) -> None:
-    """The network the config describes has the checkpoint's tensor shapes (training.build.first_misfit)."""
-    misfit = first_misfit(cfg, state)
-    if misfit is not None:
-        k, there, here, n = misfit
-        raise InputError(
-            "run",
-            Shown(str(run.path)),
-            f"a run whose {path.relative_to(run.path)} fits its model.net ({cfg.model.net._target_}): {k} is "
-            f"{there} there, {here} in the config ({n} tensors differ)",
-        )
+    """The network the config describes has the checkpoint's tensor shapes (training.build.misfit_words)."""
+    words = misfit_words(cfg, run.path, path, state)
+    if words is not None:
+        raise InputError("run", Shown(str(run.path)), words)
 
 
 def _as_input(run: RunDir, fn, *args):

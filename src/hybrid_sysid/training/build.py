@@ -173,15 +173,22 @@ def check_sizes(cfg: DictConfig, run_dir: Path, key: str) -> None:
         return
     run = RunDir(run_dir)
     path, state = run.load_weights(key)
+    words = misfit_words(cfg, run.path, path, state)
+    if words is not None:
+        bad(key, Shown(str(run_dir)), words)
+
+
+def misfit_words(cfg: DictConfig, run_path: Path, path: Path, state: dict) -> str | None:
+    """What a run must be when its checkpoint ``path`` does not fit the config's model.net (``first_misfit``), in
+    the words every refusal of it uses (training's and inference's); None when it fits."""
     misfit = first_misfit(cfg, state)
-    if misfit is not None:
-        k, there, here, n = misfit
-        bad(
-            key,
-            Shown(str(run_dir)),
-            f"a run whose {path.relative_to(run.path)} fits its model.net ({cfg.model.net._target_}): {k} is "
-            f"{there} there, {here} in the config ({n} tensors differ)",
-        )
+    if misfit is None:
+        return None
+    k, there, here, n = misfit
+    return (
+        f"a run whose {path.relative_to(run_path)} fits its model.net ({cfg.model.net._target_}): {k} is "
+        f"{there} there, {here} in the config ({n} tensors differ)"
+    )
 
 
 def check_weights(cfg: DictConfig, run_dir: Path, key: str) -> None:
