@@ -67,6 +67,9 @@ def test_defaults_outside_the_space_are_one_named_error(make_cfg, tmp_path):
         run_tuned(make_cfg(*TINY, "model.net.channels=64"), tmp_path / "job")
     with pytest.raises(ConfigError, match=r"tuned.n_trials = 0 is not allowed: must be an integer >= 1"):
         run_tuned(make_cfg(*TINY, "tuned.n_trials=0"), tmp_path / "job")
+    # a bad later seed too, before the search, in the words of the run's own seed
+    with pytest.raises(ConfigError, match=r"tuned.seeds\[1\] = -1 is not allowed: must lie in \[0, 4294967295\]"):
+        run_tuned(make_cfg(*TINY, "tuned.seeds=[0,-1]"), tmp_path / "job")
     assert not (tmp_path / "job").exists()
 
 

@@ -28,11 +28,11 @@ from hybrid_sysid.core.options import TASKS
 from hybrid_sysid.data.spec import (
     NOISE_MAX,
     NOISE_UNIT,
-    SEED_MAX,
     BatchSettings,
     DatasetSpec,
     WindowSettings,
     check_eval_windows,
+    check_seed,
 )
 from hybrid_sysid.model.optim import OptimSettings
 from hybrid_sysid.physics import QuarterCar
@@ -78,8 +78,7 @@ def validate(cfg: DictConfig, training: bool = True, trains: bool = True) -> Non
     _check_known_keys(cfg)
     # typed values (derived ones are checked later); the car's constants have their own check
     _check_finite({k: v for k, v in OmegaConf.to_container(cfg, resolve=False).items() if k != "car"}, "")
-    if not 0 <= cfg.seed <= SEED_MAX:
-        bad("seed", cfg.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
+    check_seed("seed", cfg.seed)
     if not 0 <= cfg.get(versions.KEY, versions.VERSION) <= versions.VERSION:  # a saved config's own, or this one's
         bad(versions.KEY, cfg[versions.KEY], f"a version of the config schema, 0 to {versions.VERSION}")
     for key, value in cfg.car.items():

@@ -31,6 +31,15 @@ DT_RTOL = 1e-9  # a recording's dt counts as another's (a run's data.dt, a file'
 # the samples a band-pass must leave of each window (objective.filter, the least-squares baselines)
 MIN_FILTERED = 10
 SEED_MAX = 2**32 - 1  # numpy's and Lightning's seeds are 32-bit unsigned
+
+
+def check_seed(key: str, value) -> int:
+    """The one range of a seed (the run's ``seed``, ``data.seed``, ``tuned.seeds``): numpy's and Lightning's."""
+    if isinstance(value, bool) or not (isinstance(value, int) and 0 <= value <= SEED_MAX):
+        bad(key, value, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
+    return value
+
+
 # a car's constant above this (kg, N/m, N s/m; a car's are 1e2 to 1e5) overflows the stability search's matrices
 CAR_MAX = 1e9
 
@@ -75,8 +84,7 @@ class DatasetSpec:
         check_dt(self.dt)
         check_drive(self.speed, self.n_waves)
         check_seat_draws(self.m3_min, self.m3_max, self.seat_spread)
-        if not (isinstance(self.seed, int) and 0 <= self.seed <= SEED_MAX):
-            bad("seed", self.seed, f"must lie in [0, {SEED_MAX}] (a 32-bit unsigned seed)")
+        check_seed("seed", self.seed)
         mismatches = settings("car")  # the car's faults (a hardening seat spring) check their own constants
         for name, value in asdict(self.car).items():
             if name not in mismatches and not (

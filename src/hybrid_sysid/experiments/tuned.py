@@ -29,6 +29,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import validate
 from hybrid_sysid.core.checks import bad
 from hybrid_sysid.core.files import write_atomic, write_yaml_atomic
+from hybrid_sysid.data.spec import check_seed
 from hybrid_sysid.experiments.presets import preset
 from hybrid_sysid.experiments.search import check_sampler, check_search, sampler_for
 from hybrid_sysid.runs.rundir import RunDir
@@ -90,6 +91,8 @@ def run_tuned(cfg: DictConfig, job_dir: str | Path, job_overrides=()) -> dict:
     if not t.seeds:
         bad("tuned.seeds", [], "at least one seed, e.g. [0, 1, 2]")
     validate(with_values(cfg, defaults, t.trial_seed, trial_settings))
+    for i, seed in enumerate(t.seeds):  # every seed before the search, not when its job comes
+        check_seed(f"tuned.seeds[{i}]", seed)
     validate(with_values(cfg, defaults, t.seeds[0]))
     base = [o for o in job_overrides if not o.startswith("seed=")]
 
