@@ -14,8 +14,10 @@ y = theta - log(c3, k3) + log m3, and the prior is their mean over the masses: e
 
 The posterior: exp(-V(theta) / (2 kappa)) times that prior, kappa = V_ML / dof the ML fit's estimate of
 N sigma_seat^2 (fit_eiv: the likelihood is exp(-V / (2 N sigma^2))). It is evaluated on a G x G grid in theta
-around the MAP fit, +-``width`` of its standard errors wide per parameter (at most ``cap`` in log p): the
-posterior's mass lies there, and on a clean window the grid shrinks with se, so the estimate stays exact.
+around the MAP fit, +-``width`` of its standard errors wide per parameter (at most ``cap`` in log p), cut to the
+prior's support: the posterior's mass lies there, and on a clean window the grid shrinks with se, so the estimate
+stays exact. Where the MAP fit lies farther outside the support than that (its Gaussian prior lets p run off on
+barely informative windows), the grid spans the support: those windows carried most of MAP's error at noise 0.1.
 """
 
 from __future__ import annotations
@@ -75,12 +77,20 @@ def weighted_median(values, weights) -> np.ndarray:
     return np.where((total[..., 0] > 0) & np.isfinite(total[..., 0]), out, np.nan)
 
 
-def posterior_grid(centre, se, points: int = POINTS, width: float = WIDTH, cap: float = CAP) -> np.ndarray:
+def posterior_grid(
+    centre, se, points: int = POINTS, width: float = WIDTH, cap: float = CAP, support=None
+) -> np.ndarray:
     """(n, G, 2): per window and parameter the G values of theta the grid takes (its G x G points are their
-    product), centred on ``centre`` (n, 2) in log p. A non-finite se takes the cap."""
+    product), +-min(width se, cap) around ``centre`` (n, 2) in log p; a non-finite se takes the cap. ``support``:
+    (low (2,), high (2,)) of theta outside which the prior is zero: the grid keeps to it, and where the MAP fit lies
+    farther outside than the grid reaches (noise 0.1: p off by a factor 10 and more), it spans the support."""
     half = np.minimum(width * np.nan_to_num(np.asarray(se, dtype=float), nan=np.inf, posinf=np.inf), cap)
-    offsets = np.linspace(-1.0, 1.0, points)
-    return centre[:, None, :] + offsets[None, :, None] * half[:, None, :]
+    low, high = centre - half, centre + half
+    if support is not None:
+        low, high = np.maximum(low, support[0]), np.minimum(high, support[1])
+        missed = low > high
+        low, high = np.where(missed, support[0], low), np.where(missed, support[1], high)
+    return low[:, None, :] + np.linspace(0.0, 1.0, points)[None, :, None] * (high - low)[:, None, :]
 
 
 def criterion_on_grid(axes, E, grid, q) -> np.ndarray:
@@ -129,8 +139,8 @@ def bayes_fit(
     fit: the MAP EivFit of these windows (fit_eiv with a prior and fix "none"), whose ``ml`` is the ML fit: the
     grid's centre and width come from the MAP fit, the likelihood's scale kappa from the ML fit's cost. draws: the
     simulator's draws (m3_min, m3_max, c3, k3, seat_spread). A window whose MAP fit is not defined stays NaN; one
-    whose posterior has no mass on its grid (its MAP fit outside the prior's support by more than the grid's
-    width, or a likelihood exact to rounding, kappa = 0) keeps the MAP fit, which is then all the data say."""
+    whose posterior has no mass on its grid (a likelihood exact to rounding, kappa = 0, or a grid in a corner of
+    the support's bounding box that the support itself misses) keeps the MAP fit."""
     masses, log_c3, log_k3, s = check_draws(*(draws[k] for k in ("m3_min", "m3_max", "c3", "k3", "seat_spread")))
     points = check_int("points", points, 2)
     width, cap = check_positive("width", width), check_positive("cap", cap)
@@ -148,7 +158,10 @@ def bayes_fit(
     usable = np.flatnonzero(defined & np.isfinite(kappa) & (kappa > 0))
     if not usable.size:
         return out
-    axes = posterior_grid(centre[usable], fit.se[usable], points, width, cap)  # (u, G, 2)
+    # the prior's support: log(c (1 -+ s) / m) over the masses' range, per parameter
+    log_c = np.array([log_c3, log_k3])
+    support = (log_c + np.log1p(-s) - np.log(masses[-1]), log_c + np.log1p(s) - np.log(masses[0]))
+    axes = posterior_grid(centre[usable], fit.se[usable], points, width, cap, support)  # (u, G, 2)
     # the prior separates per mass: mean_m f1(theta1 + log m) f2(theta2 + log m), an (u, G, M) x (u, G, M) product
     log_m = np.log(masses)
     f1 = _spread_density(axes[:, :, 0, None] - log_c3 + log_m, s)
