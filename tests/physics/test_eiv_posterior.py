@@ -99,9 +99,8 @@ def test_exact_on_clean_windows_of_an_independent_simulation():
 
 def test_noisy_windows_below_the_map_fit_on_both_parameters():
     """Noise 0.03 on 1200 windows of the simulator's recordings (seat_spread 0.3). Measured ratios Bayes / MAP of
-    the mean relative deviation over data seeds 0-7: p1 0.953-0.989, p2 0.968-0.999 (seed 0: 0.970 / 0.994;
-    with 300 windows, seeds 0-9, they spread over 0.93-1.01). Seed 0 is held to p1 <= 0.99 (2% room) and p2
-    below MAP (0.6% room): the data are seeded, so only rounding moves them."""
+    the mean relative deviation over data seeds 0-7: p1 0.933-0.991, p2 0.951-0.998, below 1 on both for every
+    seed; seed 0, held here to below MAP, 0.933 / 0.951 (5-7% room: the data are seeded, only rounding moves them)."""
     spec = DatasetSpec(n_roads=20, n_masses=60, n_steps=500, seat_spread=0.3, seed=0)
     ds = generate_dataset(spec)
     rng = np.random.default_rng(0)
@@ -112,8 +111,7 @@ def test_noisy_windows_below_the_map_fit_on_both_parameters():
     est = bayes_fit(seat, body, DT, fit, DRAWS)
     assert np.isfinite(est).all()
     bayes, map_ = np.abs(est / true - 1).mean(axis=0), np.abs(fit.p / true - 1).mean(axis=0)
-    assert bayes[0] <= 0.99 * map_[0], (bayes, map_)
-    assert bayes[1] < map_[1], (bayes, map_)
+    assert (bayes < map_).all(), (bayes, map_)
 
 
 def test_windows_without_a_map_fit_stay_undefined():

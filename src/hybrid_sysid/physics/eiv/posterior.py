@@ -106,7 +106,8 @@ def criterion_on_grid(axes, E, grid, q) -> np.ndarray:
     one = np.ones_like(p1)
     # W = q0 + 2 p1 q1 + 2 p2 q2 + p1^2 q3 + 2 p1 p2 q4 + p2^2 q5 (model.noise_weight)
     mono = np.stack([one, 2 * p1, 2 * p2, p1 * p1, 2 * p1 * p2, p2 * p2], axis=-1)
-    w = grid.weight / (mono @ q)  # (n, G^2, K)
+    # one product, not n broadcast ones: OpenBLAS threads each small one, ~20x slower on a busy machine
+    w = grid.weight / (mono.reshape(-1, 6) @ q).reshape(n, G * G, -1)  # (n, G^2, K)
     pi = np.stack([one, p1, p2], axis=-1)  # e = sum_a pi_a E_a
     pairs = [(a, b) for a in range(3) for b in range(a, 3)]
     P = np.stack([(E[a] * E[b].conj()).real * (1 if a == b else 2) for a, b in pairs], axis=-1)  # (n, K, 6)
