@@ -25,8 +25,9 @@ def test_an_estimator_preset_selects_its_model_and_objective_or_a_baseline(name)
         assert choices.baseline.span == "window" and choices.baseline.filter == "bandpass"
         return
     if name.startswith("eiv"):  # the errors-in-variables fit of each window, with the simulator's prior for _map
-        assert choices.baseline._target_.endswith("ErrorsInVariablesFit")
-        assert (choices.baseline.prior is not None) == ("_map" in name)
+        bayes = name == "eiv_bayes"  # the Bayes estimate under the simulator's exact prior
+        assert choices.baseline._target_.endswith("ErrorsInVariablesBayes" if bayes else "ErrorsInVariablesFit")
+        assert (choices.baseline.prior is not None) == ("_map" in name or bayes)
         return
     model, objective = name.split("_", 1)
     assert choices.baseline is None
