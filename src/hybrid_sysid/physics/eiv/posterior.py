@@ -27,7 +27,7 @@ import numpy as np
 from hybrid_sysid.core.checks import check_int, check_number, check_positive
 from hybrid_sysid.physics.eiv.model import error_spectra, setup_windows
 
-# grid points per parameter: on 3 x 400 windows, 21 cost 0.2 points of p1's error at noise 0.03 and 41 gain none
+# grid points per parameter: on 3 x 400 windows, 21 cost 0.1 points of p1's error at noise 0.03 and 41 gain none
 POINTS = 31
 WIDTH = 5.0  # the grid's half width in the MAP fit's standard errors
 CAP = 1.2  # and at most this in log p (a factor 3.3): the prior's support is narrower still
