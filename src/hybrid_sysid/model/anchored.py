@@ -4,7 +4,8 @@ be, and a network for the rest (docs/anchored.md, "The anchored estimator").
 Per window and parameter, p = w p_fit + (1 - w) p_net with w = tau^2 / (tau^2 + se^2): se is the fit's own
 relative standard error, and the network gives both p_net and tau from the window and the fit's statistics. The
 fit (``anchor``) is the errors-in-variables maximum likelihood (baselines.errors_in_variables) or the band-passed
-least squares (physics.seat_fit). With a ``prior``, p_net is the window's MAP fit times a learned factor.
+least squares (physics.seat_fit). With a ``prior``, p_net is the window's MAP fit times a learned factor; with
+``blend`` too, the evaluated output is p^g times the window's Bayes estimate^(1 - g) (baselines.eiv_bayes).
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 import torch
 from torch import nn
 
+from hybrid_sysid.baselines.eiv_bayes import ErrorsInVariablesBayes
 from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
 from hybrid_sysid.core.checks import bad, check_choice, check_number
 from hybrid_sysid.core.options import MEASUREMENTS
@@ -64,6 +66,14 @@ class AnchoredCNN(FastCNN):
         likelihood fit. A network that learns p_net from scratch has to rediscover the prior from its
         objective; a label-free objective's targets carry noise as large as the window's own error at noise
         0.03, and the network then missed the MAP fit it could have started from (docs/anchored.md).
+    blend: None, or g in [0, 1]: in evaluation (not in training), p^g p_bayes^(1 - g), p_bayes the window's Bayes
+        estimate (``ErrorsInVariablesBayes``: the likelihood times the simulator's exact prior). Both estimate p
+        from the same window, but their errors are partly independent: the Bayes estimate is the best the window's
+        likelihood and the prior allow, and the network adds what a label-free objective teaches of the rest (the
+        input's statistics, say). Only where that estimate is defined: with a prior whose seat_spread > 0 (at 0
+        the prior has no density) and no fault fix (the likelihood then has a third parameter); elsewhere, and
+        where the window's Bayes estimate is not finite, p is kept. Training never sees it: it has no weights, a
+        Bayes fit costs about 4 ms a window, and a network trained through it would learn to undo it.
     trunk: False: the head reads the fits' statistics alone, without the convolutional trunk's features of the
         window (with a prior, those statistics hold what the trunk found, at a fraction of a step's cost).
 
@@ -87,6 +97,7 @@ class AnchoredCNN(FastCNN):
         fix: str = "none",
         prior: dict | None = None,
         trunk: bool = True,
+        blend: float | None = None,
         **cnn,
     ):
         super().__init__(p_min, p_max, **cnn)
@@ -110,6 +121,11 @@ class AnchoredCNN(FastCNN):
             extra = {} if fix == "none" else {"fix": fix}
             # the fit checks the prior (a dict of its keys), and names its errors under model.net.prior
             self.map = ErrorsInVariablesFit(noise_ratio=1.0, prior=prior, dt=self.dt, **band, **extra)
+        if blend is not None:
+            blend = check_number("blend", blend, 0.0, 1.0)
+        self.blend, self.bayes = blend, None
+        if blend is not None and prior is not None and fix == "none" and prior.get("seat_spread", 0) > 0:
+            self.bayes = ErrorsInVariablesBayes(noise_ratio=1.0, prior=prior, dt=self.dt, **band)
         if not isinstance(trunk, bool):
             bad("trunk", trunk, "true or false")
         self.trunk = trunk
@@ -187,4 +203,16 @@ class AnchoredCNN(FastCNN):
             p_net = torch.where(map_valid, p_map * torch.exp(delta), p_net)
         tau = torch.exp(self.log_tau[0] + self.log_tau[1] * torch.sigmoid(out[:, 2:]))
         w = torch.where(valid, tau.pow(2) / (tau.pow(2) + se.pow(2)), 0.0)
-        return w * torch.where(valid, p_fit, p_net) + (1 - w) * p_net
+        p = w * torch.where(valid, p_fit, p_net) + (1 - w) * p_net
+        return p if self.bayes is None or self.training else self.blended(p, signals)
+
+    def blended(self, p: torch.Tensor, signals: torch.Tensor) -> torch.Tensor:
+        """p^g p_bayes^(1 - g) per window and parameter (g = ``blend``), the mean of the two in log p; p where
+        either is not finite and positive."""
+        x = signals.detach().to("cpu", torch.float64).numpy()
+        p_bayes, _ = self.bayes.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
+        p_bayes = torch.from_numpy(p_bayes).to(p)
+        ok = torch.isfinite(p_bayes) & (p_bayes > 0) & torch.isfinite(p) & (p > 0)
+        log_mix = self.blend * torch.log(p.clamp_min(1e-30)) + (1 - self.blend) * torch.log(p_bayes.where(ok, 1.0))
+        mixed = torch.exp(log_mix)
+        return torch.where(ok, mixed, p)
