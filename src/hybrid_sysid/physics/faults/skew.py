@@ -14,7 +14,6 @@ import math
 from functools import lru_cache
 
 import numpy as np
-from scipy import special
 
 from hybrid_sysid.core.checks import bad, check_number
 from hybrid_sysid.physics.faults.base import Fault, Setting, value_of
@@ -219,7 +218,7 @@ def advance_kernel(u, half_width: int):
 
     def k(v):
         t = np.sqrt(np.clip(1.0 - (v / support) ** 2, 0.0, None))
-        return np.where(np.abs(v) < support, np.sinc(v) * special.i0(beta * t), 0.0) / special.i0(beta)
+        return np.where(np.abs(v) < support, np.sinc(v) * np.i0(beta * t), 0.0) / np.i0(beta)
 
     e1, e2 = 1e-5, 1e-4
     k0 = k(u)
