@@ -127,6 +127,28 @@ def test_a_rerun_sweeps_skipped_jobs_and_failed_ones_time_nothing():
     assert seconds == pytest.approx(101.4 - 1.3) and untimed == 0
 
 
+def test_a_job_resumed_from_its_checkpoint_times_nothing():
+    """An interrupted sweep run again: job 0 resumes at step 1200 of 1500 and ends in 60 s (its record's work:
+    the 50 s of those steps). The two jobs of its kind still to run take 300 s each, as job 1 shows once it
+    ends; before that, a lower bound, never a kind timed at a resumed job's 60 s."""
+    header = {"jobs": 3, "start": 0.0, "at_once": 1, "kinds": ["net"] * 3}
+    events = [
+        {"start": 0, "t": 0.0, "pid": 1},
+        {"steps": 0, "t": 1.0, "done": 1200, "of": 1500},
+        {"steps": 0, "t": 51.0, "done": 1500, "of": 1500},
+        {"end": 0, "t": 60.0, "seconds": 60.0, "cold": True, "pid": 1, "work": 50.0, "ok": True},
+        {"start": 1, "t": 61.0, "pid": 1},
+    ]
+    seconds, untimed = estimate(header, events, 61.0)
+    assert untimed == 2  # jobs 1 and 2 not timed: "at least"
+    events += [
+        {"steps": 1, "t": 62.0, "done": 0, "of": 1500},
+        {"end": 1, "t": 361.0, "seconds": 300.0, "cold": False, "pid": 1, "work": 295.0, "ok": True},
+    ]
+    seconds, untimed = estimate(header, events, 361.0)
+    assert untimed == 0 and seconds == pytest.approx(300.0, rel=0.01)  # job 2, timed by job 1 alone
+
+
 def test_job_lines_from_the_progress_file(tmp_path):
     """The file as the workers write it: the line's estimate from its events, and plurals that fit the count."""
     path = tmp_path / ".progress"

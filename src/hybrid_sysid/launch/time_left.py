@@ -19,6 +19,8 @@ wrong, and each has its answer here:
   minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
   (``borrowed``) time it. A kind with none of these counts at the overhead alone: the estimate is then a lower
   bound, and the line says "at least" and how many jobs it did not time.
+- A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
+  its time and recorded work are those of the steps left. It times nothing, as a re-run's completed job.
 """
 
 from __future__ import annotations
@@ -150,6 +152,16 @@ def rates_of(events: list[dict]) -> dict:
     return out
 
 
+def resumed(events: list[dict]) -> set:
+    """Jobs whose first step report is past step 0: resumed from a checkpoint, so their time and their record's
+    work are a part of their kind's (a resumed network that ended in 166 s timed its kind at that, for 800 s)."""
+    first: dict = {}
+    for e in events:
+        if "steps" in e and e.get("of"):
+            first.setdefault(e["steps"], int(e["done"]))
+    return {num for num, done in first.items() if done > 0}
+
+
 def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] | None:
     """(seconds until the last job ends, how many of the jobs not ended are of a kind with no time: neither an
     ended job nor a running one's steps; the seconds are then a lower bound), or None when no job has a time (the
@@ -163,7 +175,9 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         elif "end" in e:
             if e["end"] not in ends or e.get("seconds") is not None:  # the job's own entry, not the parent's
                 ends[e["end"]] = e
-    timed, overhead = _timed(ends, _cycles(events))
+    partial = resumed(events)
+    whole = {num: e for num, e in ends.items() if num not in partial}  # the ended jobs whose times tell
+    timed, overhead = _timed(whole, _cycles(events))
 
     def kind(num) -> str:
         return kinds[num] if isinstance(num, int) and 0 <= num < len(kinds) else ""
@@ -173,13 +187,13 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         by_kind.setdefault(kind(num), []).append(t)
     means = {k: _mean(v) for k, v in by_kind.items()}
     works: dict[str, list] = {}
-    for num, e in ends.items():
+    for num, e in whole.items():
         if e.get("work") is not None and (num in timed or kind(num) not in means):
             works.setdefault(kind(num), []).append(float(e["work"]))
     # a re-run sweep's completed jobs end at once, but their records say what a job of their kind took: that
     # times a kind none of whose jobs has run here yet (a resumed sweep of networks and baselines mixed)
     recorded: dict[str, list] = {}
-    for num, e in ends.items():
+    for num, e in whole.items():
         if num not in timed and e.get("ok", True) and e.get("work") is not None and kind(num) not in means:
             recorded.setdefault(kind(num), []).append(float(e["work"]))
     means.update({k: statistics.fmean(v) for k, v in recorded.items()})
@@ -192,7 +206,7 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     means.update({k: statistics.fmean(v) + overhead for k, v in stepped.items()})
     wanted = {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)
     means.update(borrowed(means, wanted, {k: statistics.fmean(v) for k, v in works.items()}))
-    if not jobs or not means:
+    if not jobs or not (means or partial):  # resumed jobs alone: a lower bound, not their times per job
         return None
     floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
     untimed = 0
