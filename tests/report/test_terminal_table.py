@@ -98,3 +98,20 @@ def test_a_narrow_table_stays_one_block_per_parameter(tmp_path, n_noises):
     tables = [b for b in console.split("\n\n") if "---" in b]
     assert len(tables) == 2
     assert " p1 [%]" in tables[0] and " p2 [%]" not in tables[0] and "seeds" in tables[1]
+
+
+def test_a_results_page_holds_the_summarys_table_with_its_bound_rows(tmp_path):
+    """results= pages (docs/results/) show the table of summary.md from the same records, the Cramér-Rao bound's
+    row per K and its note included (the pages once left the bound out)."""
+    from hybrid_sysid.cli.report import main
+
+    sweep = crafted_sweep(tmp_path / "sweep", {"objective": ["labelled", "ls"]})
+    page = tmp_path / "docs" / "page.md"
+    assert main([str(sweep), f"results={page}"]) == 0
+    write_summary(sweep, figures=False)
+    summary_rows = parse_markdown((sweep / "summary.md").read_text())
+    page_rows = parse_markdown(page.read_text())
+    bound_rows = [r for r in page_rows if "Cramér-Rao" in r["objective"]]
+    assert len(bound_rows) == 2  # one per K
+    assert page_rows == summary_rows
+    assert "an efficient unbiased estimator is expected to reach" in page.read_text()

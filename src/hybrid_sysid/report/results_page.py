@@ -27,7 +27,7 @@ from hybrid_sysid.report.markdown import to_markdown
 from hybrid_sysid.report.paper import LEGEND, comparison_markdown
 from hybrid_sysid.report.protocol import one_line, protocol
 from hybrid_sysid.report.provenance import provenance, provenance_lines
-from hybrid_sysid.report.summary import failed_lines, tested_table, windows_note
+from hybrid_sysid.report.summary import bound_note, failed_lines, tested_table, windows_note
 from hybrid_sysid.report.tables import METRICS
 
 INDEX = "index.md"
@@ -157,7 +157,8 @@ def _section(df, root, group, merged, title, slug, figures, split, metric, compa
         + one_line(protocol(df, root))
         + windows_note(df, table, split),
         "",
-        to_markdown(table, compare=compare),
+        to_markdown(table, compare=compare, bound=table.attrs.get("bound")),
+        *bound_note(table.attrs.get("bound")),
     ]
     if any(c[2] == "mean" for c in table.columns):
         figures.mkdir(parents=True, exist_ok=True)
