@@ -72,8 +72,9 @@ class AnchoredCNN(FastCNN):
         likelihood and the prior allow, and the network adds what a label-free objective teaches of the rest (the
         input's statistics, say). Only where that estimate is defined: with a prior whose seat_spread > 0 (at 0
         the prior has no density) and no fault fix (the likelihood then has a third parameter); elsewhere, and
-        where the window's Bayes estimate is not finite, p is kept. Training never sees it: it has no weights, a
-        Bayes fit costs about 4 ms a window, and a network trained through it would learn to undo it.
+        where the window's Bayes estimate is not finite, p is kept. Training steps never see it: it has no
+        weights, and a Bayes fit costs about 4 ms a window (0.25 s a step of 64). Validation, in evaluation mode,
+        scores the blend, so the checkpoint kept is the best blended one.
     trunk: False: the head reads the fits' statistics alone, without the convolutional trunk's features of the
         window (with a prior, those statistics hold what the trunk found, at a fraction of a step's cost).
 
