@@ -56,6 +56,10 @@ class ErrorsInVariablesBayes(ErrorsInVariablesFit):
         posterior's Laplace width); elsewhere what ``baseline=eiv_map`` keeps there."""
         seat, body = np.asarray(seat, dtype=np.float64), np.asarray(body, dtype=np.float64)
         _, p0, se0, out = self._fit(seat, body, dt, measurement)
+        return self.from_fit(seat, body, dt, measurement, p0, se0, out)
+
+    def from_fit(self, seat, body, dt: float, measurement: str, p0, se0, out) -> tuple[np.ndarray, np.ndarray]:
+        """``fit_windows`` from a MAP fit already made with this prior (``fit_with_ml``'s last item)."""
         p = bayes_fit(
             seat,
             body,

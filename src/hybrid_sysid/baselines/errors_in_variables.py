@@ -142,11 +142,12 @@ class ErrorsInVariablesFit:
     def fit_with_ml(self, seat, body, dt: float, measurement: str):
         """With a prior: the band-passed least squares (physics.seat_fit.SeatFit), the guarded ML fit's (p, se) and
         the MAP fit's (p, se) of the same windows, as ``fit_windows`` gives each, with the likelihood solved once
-        (the MAP fit starts from the ML one)."""
+        (the MAP fit starts from the ML one); last the raw fit (p0, se0, EivFit), from which a Bayes estimate of
+        the same windows (baselines.eiv_bayes, ``from_fit``) needs no fit again."""
         if self.prior is None:
             raise ValueError("fit_with_ml needs a prior: the ML fit alone is fit_windows")
         start, p0, se0, out = self._fit(seat, body, dt, measurement)
-        return start, _kept(out.ml, p0, se0, guarded=True), _kept(out, p0, se0)
+        return start, _kept(out.ml, p0, se0, guarded=True), _kept(out, p0, se0), (p0, se0, out)
 
     def _fit(self, seat, body, dt: float, measurement: str):
         """The least-squares start, the likelihood fit's start p0 and its fallback se0, and the EivFit."""

@@ -162,16 +162,18 @@ class AnchoredCNN(FastCNN):
 
     def fits(self, signals: torch.Tensor) -> tuple[SeatFit, tuple[np.ndarray, np.ndarray] | None]:
         """The anchor's fit of each window (``anchor``) and, with a prior, the MAP fit's (p, se) (B, 2) (NaN p where
-        not defined); with both the likelihood anchor and a prior, the likelihood is solved once for the two."""
-        if self.map is None or self.eiv is None:
-            fit = self.anchor(signals)
-            if self.map is None:
-                return fit, None
-            x = signals.detach().to("cpu", torch.float64).numpy()
-            return fit, self.map.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
+        not defined); with a prior, the likelihood is solved once for the anchor, the MAP fit and the blend."""
+        return self._fits(signals)[:2]
+
+    def _fits(self, signals: torch.Tensor):
+        """``fits`` and, with a prior, the windows in float64 and the raw MAP fit (for ``blended``)."""
+        if self.map is None:
+            return self.anchor(signals), None, None
         x = signals.detach().to("cpu", torch.float64).numpy()
-        start, (p, se), map_fit = self.map.fit_with_ml(x[:, 0], x[:, 1], self.dt, self.measurement)
-        return SeatFit(p, se, start.unexplained, start.correlation), map_fit
+        # the likelihood's start is the anchor's band-passed least squares, so an LS anchor is fitted once too
+        start, ml, map_fit, raw = self.map.fit_with_ml(x[:, 0], x[:, 1], self.dt, self.measurement)
+        fit = start if self.eiv is None else SeatFit(*ml, start.unexplained, start.correlation)
+        return fit, map_fit, (x, raw)
 
     def _stats(self, p, se):
         """log p about the head's centre, log10 se, and where p is defined and positive."""
@@ -182,7 +184,7 @@ class AnchoredCNN(FastCNN):
         return ratio, log_se, valid
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
-        fit, map_fit = self.fits(signals)
+        fit, map_fit, raw = self._fits(signals)
         p_fit, se = (torch.from_numpy(a).to(signals) for a in (fit.p, fit.se))
         ratio, log_se, valid = self._stats(p_fit, se)
         unexplained = torch.from_numpy(np.log10(np.clip(fit.unexplained, 1e-12, 1.0)) / 6).to(signals)
@@ -205,13 +207,12 @@ class AnchoredCNN(FastCNN):
         tau = torch.exp(self.log_tau[0] + self.log_tau[1] * torch.sigmoid(out[:, 2:]))
         w = torch.where(valid, tau.pow(2) / (tau.pow(2) + se.pow(2)), 0.0)
         p = w * torch.where(valid, p_fit, p_net) + (1 - w) * p_net
-        return p if self.bayes is None or self.training else self.blended(p, signals)
+        return p if self.bayes is None or self.training else self.blended(p, *raw)
 
-    def blended(self, p: torch.Tensor, signals: torch.Tensor) -> torch.Tensor:
+    def blended(self, p: torch.Tensor, x: np.ndarray, raw: tuple) -> torch.Tensor:
         """p^g p_bayes^(1 - g) per window and parameter (g = ``blend``), the mean of the two in log p; p where
-        either is not finite and positive."""
-        x = signals.detach().to("cpu", torch.float64).numpy()
-        p_bayes, _ = self.bayes.fit_windows(x[:, 0], x[:, 1], self.dt, self.measurement)
+        either is not finite and positive. x: the windows (B, 2, W) in float64; raw: the MAP fit of ``_fits``."""
+        p_bayes, _ = self.bayes.from_fit(x[:, 0], x[:, 1], self.dt, self.measurement, *raw)
         p_bayes = torch.from_numpy(p_bayes).to(p)
         ok = torch.isfinite(p_bayes) & (p_bayes > 0) & torch.isfinite(p) & (p > 0)
         log_mix = self.blend * torch.log(p.clamp_min(1e-30)) + (1 - self.blend) * torch.log(p_bayes.where(ok, 1.0))
