@@ -27,6 +27,9 @@ for name, main, args in [
     ("help", train.main, ["--help"]),
     ("max_steps", train.main, ["trainer.max_steps=-1"]),
     ("objective", train.main, ["objective=nonexistent"]),
+    ("net_value", train.main, ["estimator=anchored_cross_segment", "model.net.blend=3"]),
+    ("objective_value", train.main, ["objective=cross_segment", "objective.target=xx"]),
+    ("window", train.main, ["data.window=8"]),
     ("report", report.main, ["missing_sweep"]),
     ("eval", evaluate.main, ["run=no_run"]),
     ("predict", predict.main, ["run=no_run", "input=missing.csv"]),
@@ -63,8 +66,17 @@ def test_help_and_refusals_before_work_load_no_heavy_module(tmp_path):
     assert proc.returncode == 0, proc.stderr[-3000:]
     found = json.loads(proc.stdout.rsplit("PROBE ", 1)[1])
     assert "usage: hybrid-sysid [-m] [key=value ...]" in proc.stdout  # the help was printed, not refused
-    assert found["codes"] == {"help": 0, "max_steps": 2, "objective": 2, "predict": 2, "report": 2, "eval": 2}
-    for line in ("error: trainer.max_steps = -1", "error: objective", "missing.csv", "missing_sweep", "no_run"):
+    refused = ("max_steps", "objective", "net_value", "objective_value", "window", "predict", "report", "eval")
+    assert found["codes"] == {"help": 0, **dict.fromkeys(refused, 2)}
+    values = ("error: model.net.blend = 3", "error: objective.target = 'xx'", "error: data.window = 8")
+    for line in (
+        "error: trainer.max_steps = -1",
+        "error: objective",
+        *values,
+        "missing.csv",
+        "missing_sweep",
+        "no_run",
+    ):
         assert line in proc.stderr, proc.stderr[-3000:]
     assert found["loaded"] == [], found
     assert found["seen"]["eval"] == [], found  # every command before predict, cumulatively

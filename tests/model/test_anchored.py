@@ -12,8 +12,8 @@ import pytest
 import torch
 from omegaconf import OmegaConf
 
+from hybrid_sysid.baselines import errors_in_variables
 from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
-from hybrid_sysid.model import anchored
 from hybrid_sysid.model.anchored import AnchoredCNN
 from hybrid_sysid.physics import relative_states, road_profiles, simulate
 from hybrid_sysid.physics.filters import bandpass_taps
@@ -146,7 +146,7 @@ def test_the_fault_the_config_simulates_reaches_the_errors_in_variables_fit(make
         def __init__(self, **arguments):
             given.append(arguments)
 
-    monkeypatch.setattr(anchored, "ErrorsInVariablesFit", Recorder)
+    monkeypatch.setattr(errors_in_variables, "ErrorsInVariablesFit", Recorder)  # model.arguments reads it
     for fault, fix in (("clean", "none"), ("gain", "gain"), ("skewed", "skew"), ("hardening", "hardening")):
         cfg = make_cfg("model=anchored", f"fault={fault}")
         assert cfg.model.net.fix == fix

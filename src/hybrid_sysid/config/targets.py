@@ -25,6 +25,7 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.config import plugins
 from hybrid_sysid.core.checks import ConfigError, bad
 from hybrid_sysid.core.options import CALLBACKS, LOGGERS, MONITORS
+from hybrid_sysid.model.arguments import TORCH_FREE
 from hybrid_sysid.model.base import Baseline, DataModule, Network, Objective, lacks
 
 # config key -> (the package whose classes it may name, what such a class must provide)
@@ -183,8 +184,30 @@ def build(node, key: str, **extra):
     return built
 
 
-def _check_arguments(cls: type, kwargs: dict, key: str) -> None:
-    """Every keyword a parameter of ``cls``'s constructor (unless it takes ``**kwargs``)."""
+def own_part(node, key: str):
+    """For one of this package's own classes (model.arguments.TORCH_FREE), the torch-free part of its constructor run on
+    the node's arguments before the class's module, and torch, is imported: (that part's result, the network's
+    window bounds or None). None for any other class, whose constructor checks its arguments once built."""
+    spec = OmegaConf.to_container(node, resolve=True) if isinstance(node, DictConfig) else dict(node or {})
+    if not isinstance(spec, dict) or spec.get("_target_") not in TORCH_FREE:
+        return None
+    target = spec.pop("_target_")
+    if any(isinstance(k, str) and k.startswith("_") for k in spec):  # arguments() names those
+        return None
+    _no_targets_in(spec, key)
+    part, window_bounds = TORCH_FREE[target]
+    _check_arguments(part, spec, key, target.rsplit(".", 1)[1])  # the part's signature is the class's
+    try:
+        return part(**spec), (None if window_bounds is None else window_bounds(**spec))
+    except ConfigError as exc:
+        raise exc.under(key) from None
+    except Exception:  # noqa: BLE001 - a value of a type no check expects: the constructor, once built, names it
+        return None
+
+
+def _check_arguments(cls, kwargs: dict, key: str, name: str | None = None) -> None:
+    """Every keyword a parameter of ``cls``'s constructor (unless it takes ``**kwargs``); ``name``: the class's,
+    where ``cls`` is a function of the same signature."""
     try:
         params = inspect.signature(cls).parameters
     except (TypeError, ValueError):  # a signature Python cannot read: the constructor checks its own
@@ -192,9 +215,9 @@ def _check_arguments(cls: type, kwargs: dict, key: str) -> None:
     if any(p.kind is p.VAR_KEYWORD for p in params.values()):
         return
     takes = [n for n, p in params.items() if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
-    for name, value in kwargs.items():
-        if name not in takes:
-            bad(f"{key}.{name}", value, f"not an argument of {cls.__name__}, which takes {', '.join(takes)}")
+    for arg, value in kwargs.items():
+        if arg not in takes:
+            bad(f"{key}.{arg}", value, f"not an argument of {name or cls.__name__}, which takes {', '.join(takes)}")
 
 
 def _no_targets_in(value, key: str) -> None:

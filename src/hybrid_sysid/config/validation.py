@@ -21,7 +21,7 @@ from hybrid_sysid.config.memory import check_memory
 from hybrid_sysid.config.paths import check_paths
 from hybrid_sysid.config.schema import SECTIONS
 from hybrid_sysid.config.tags import check_tags
-from hybrid_sysid.config.targets import arguments, build, check_objective_members, data_module
+from hybrid_sysid.config.targets import arguments, build, check_objective_members, data_module, own_part
 from hybrid_sysid.config.trainer import check_trainer, check_trainer_arguments
 from hybrid_sysid.core.checks import ConfigError, bad, check_choice
 from hybrid_sysid.core.options import TASKS
@@ -221,7 +221,13 @@ def _one_line(exc: BaseException) -> str:
 
 def _validate_training(cfg: DictConfig, spec: DatasetSpec) -> None:
     """The network (its window bounds, then built and run on one window) and the objective (built: its filter
-    must fit the window), before any data is simulated."""
+    must fit the window), before any data is simulated. This package's own classes are checked first without
+    torch (config.targets.own_part), so a refusal of one of their values costs no torch import."""
+    net, objective = own_part(cfg.model.net, "model.net"), own_part(cfg.objective, "objective")
+    if net is not None and objective is not None:
+        fits = (getattr(objective[0], name, None) for name in ("fir", "outside_fir"))
+        with _placed():
+            WindowSettings.from_config(cfg).validate(spec, net[1], *(None if f is None else len(f) for f in fits))
     cls, net_args = arguments(cfg.model.net, "model.net")
     try:
         bounds = cls.window_bounds(**net_args)

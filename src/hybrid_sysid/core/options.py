@@ -17,6 +17,8 @@ SPLITS = ("train", "val", "test")
 # residual itself, or the per-window least-squares fit of its regressors, plain or whitened by their correlation)
 WEIGHTINGS = ("none", "eiv")
 TARGETS = ("residual", "least_squares", "whitened")
+# hybrid_sysid.data.outside: the fit of the samples outside the window (objective=cross_segment's target)
+OUTSIDE_TARGETS = ("eiv", "ls")
 FILTER_KEYS = ("low_hz", "high_hz", "taps")
 # hybrid_sysid.model.networks: activation name -> torch.nn class name; FastCNN's downsampling
 ACTIVATIONS = {"tanh": "Tanh", "relu": "ReLU", "none": "Identity"}

@@ -20,13 +20,13 @@ import numpy as np
 import torch
 
 from hybrid_sysid.core.checks import check_choice
+from hybrid_sysid.core.options import OUTSIDE_TARGETS as TARGETS
 from hybrid_sysid.data.outside_joined import fit_joined
 from hybrid_sysid.physics import relative_states
 from hybrid_sysid.physics.eiv import eiv_model
 from hybrid_sysid.physics.seat_fit import fit_seat
 
 CHUNK = 256  # rows filtered at once: bounds the float64 work arrays of a large evaluation batch (~30 MB)
-TARGETS = ("eiv", "ls")
 # The likelihood fit corrects least squares' attenuation towards zero. A correction beyond this factor means the
 # noise holds more of the regressors' power than the motion does. There (smooth roads at noise 0.1) the likelihood
 # has maxima far from the truth with a small se: p1 off by 1-5 times at noise 0.1 (8-9% of the rows), by 0.4-1.2

@@ -17,22 +17,12 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.baselines.eiv_bayes import ErrorsInVariablesBayes
-from hybrid_sysid.baselines.errors_in_variables import ErrorsInVariablesFit
-from hybrid_sysid.core.checks import bad, check_choice, check_number
-from hybrid_sysid.core.options import MEASUREMENTS
-from hybrid_sysid.data.spec import MIN_FILTERED
+from hybrid_sysid.model import arguments
 from hybrid_sysid.model.networks import FastCNN
-from hybrid_sysid.physics.faults import fix_code
-from hybrid_sysid.physics.filters import filter_taps
 from hybrid_sysid.physics.seat_fit import SeatFit, fit_windows
 
-# the least-squares baseline's band (conf/baseline/ls_bandpass.yaml): it keeps the seat resonance and drops the drift
-# of integrated noise below it and the white noise above it
-DEFAULT_FILTER = {"low_hz": 4.0, "high_hz": 20.0, "taps": 151}
 N_STATS = 8  # what the head reads of the fit: log p (2), log se (2), unexplained share, correlation, valid (2)
 N_PRIOR_STATS = 5  # and of the MAP fit, with a prior: log p (2), log se (2), valid
-ANCHORS = ("eiv", "ls")
 MAX_FACTOR = 2.0  # |log| of the factor the network may put on the MAP fit: a correction, not a new estimate
 
 
@@ -102,33 +92,12 @@ class AnchoredCNN(FastCNN):
         **cnn,
     ):
         super().__init__(p_min, p_max, **cnn)
-        check_choice("measurement", measurement, MEASUREMENTS)
-        check_choice("anchor", anchor, ANCHORS)
-        fix_code(fix)  # a registered fix (physics.faults.fixes), else a ConfigError naming fix
-        check_number("tau_min", tau_min, 0, 1, low_open=True)
-        if not (isinstance(tau_max, (int, float)) and tau_min < tau_max <= 10):
-            bad("tau_max", tau_max, f"must lie in (tau_min = {tau_min:g}, 10]")
-        band = dict(DEFAULT_FILTER if filter is None else filter)
-        self.fir = filter_taps(band, dt)
-        self.dt, self.measurement = float(dt), measurement
+        checked = arguments.anchored(
+            p_min, p_max, dt, measurement, filter, tau_min, tau_max, anchor, fix, prior, trunk, blend, **cnn
+        )
+        self.fir, self.dt, self.measurement = checked.fir, float(dt), measurement
         self.anchor_kind, self.fix = anchor, fix
-        self.eiv = None
-        if anchor == "eiv":
-            # a fault's fix only when there is one, so a clean config needs nothing of the fit beyond its band
-            extra = {} if fix == "none" else {"fix": fix}
-            self.eiv = ErrorsInVariablesFit(noise_ratio=1.0, dt=self.dt, **band, **extra)
-        self.map = None
-        if prior is not None:
-            extra = {} if fix == "none" else {"fix": fix}
-            # the fit checks the prior (a dict of its keys), and names its errors under model.net.prior
-            self.map = ErrorsInVariablesFit(noise_ratio=1.0, prior=prior, dt=self.dt, **band, **extra)
-        if blend is not None:
-            blend = check_number("blend", blend, 0.0, 1.0)
-        self.blend, self.bayes = blend, None
-        if blend is not None and prior is not None and fix == "none" and prior.get("seat_spread", 0) > 0:
-            self.bayes = ErrorsInVariablesBayes(noise_ratio=1.0, prior=prior, dt=self.dt, **band)
-        if not isinstance(trunk, bool):
-            bad("trunk", trunk, "true or false")
+        self.eiv, self.map, self.bayes, self.blend = checked.eiv, checked.map, checked.bayes, checked.blend
         self.trunk = trunk
         if not trunk:  # no parameters that nothing reads (weight decay, DDP's unused-parameter check)
             self.features = nn.Sequential()
@@ -140,11 +109,7 @@ class AnchoredCNN(FastCNN):
             nn.init.zeros_(self.head[-1].weight)
             nn.init.zeros_(self.head[-1].bias)
 
-    @staticmethod
-    def window_bounds(n_layers: int = 4, filter: dict | None = None, **arguments) -> tuple[int, None]:
-        """Long enough for the trunk and for the band-pass to leave MIN_FILTERED samples to fit."""
-        taps = (DEFAULT_FILTER if filter is None else filter).get("taps", DEFAULT_FILTER["taps"])
-        return max(2 ** int(n_layers), int(taps) + MIN_FILTERED - 1), None
+    window_bounds = staticmethod(arguments.anchored_window)
 
     def output_bounds(self) -> None:
         """None: the fit's part is not bounded by the head."""

@@ -16,10 +16,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.core.checks import ConfigError, check_choice, check_number, check_pair
-from hybrid_sysid.data.outside import TARGETS
+from hybrid_sysid.model import arguments
 from hybrid_sysid.model.objectives import LABEL_FREE
-from hybrid_sysid.physics.filters import filter_taps
 
 
 class CrossSegmentObjective(nn.Module):
@@ -58,16 +56,10 @@ class CrossSegmentObjective(nn.Module):
         weighted: bool = True,
     ):
         super().__init__()
-        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
-        self.floor = check_number("floor", floor, 0, low_open=True, unit="a relative standard error")
-        if dt is None:
-            raise ConfigError("dt", missing=True, allowed="the band-pass needs the data's step (${data.dt})")
-        self.filter = dict(filter)
-        check_choice("target", target, TARGETS)
+        checked = arguments.cross_segment(p_scale, filter, dt, floor, target, weighted)
+        self.register_buffer("p_scale", torch.tensor(checked.p_scale))
+        self.floor, self.filter, self.outside_fir = checked.floor, checked.filter, checked.outside_fir
         self.target = self.outside_target = target
-        self.outside_fir = filter_taps(self.filter, dt)
-        if not isinstance(weighted, bool):
-            raise ConfigError("weighted", weighted, allowed="true or false")
         self.weighted = weighted
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:

@@ -14,21 +14,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.core.checks import bad, check_choice, check_int, check_number, check_pair
-from hybrid_sysid.core.options import ACTIVATIONS, DOWNSAMPLES
-
-# weights of a network at most: 400 MB of float32, 1.6 GB with their gradients and Adam's two moments; far above
-# either network's defaults (about 30 thousand and 6 million), and a typo's 10^9 channels is refused before torch
-# tries to allocate it
-WEIGHTS_MAX = 10**8
-LAYERS_MAX = 30  # FastCNN: each layer halves the window, which must keep 2^n_layers steps
-
-
-def check_weights(key: str, value, weights: int, how: str) -> None:
-    """The network's ``weights`` (``how``: the formula, in its arguments' names) are at most WEIGHTS_MAX."""
-    if weights > WEIGHTS_MAX:
-        here = f"{weights:.3g}" if weights < 10**18 else "over 1e18"  # a float could not hold 10^300 x 10^300
-        bad(key, value, f"{how} must be at most {WEIGHTS_MAX:.0e} weights (here {here})")
+from hybrid_sysid.core.options import ACTIVATIONS
+from hybrid_sysid.model import arguments
 
 
 class PaperCNN(nn.Module):
@@ -44,16 +31,13 @@ class PaperCNN(nn.Module):
     """
 
     prior_arguments = ("p_scale",)
-    SHORTEST = 59  # both 'valid' convolutions need 50 + 10 - 1 samples
+    SHORTEST = arguments.PAPER_SHORTEST
 
     def __init__(self, p_scale: Sequence[float], window: int = 500, activation: str = "tanh"):
         super().__init__()
-        window = check_int("window", window, self.SHORTEST)
-        check_choice("activation", activation, ACTIVATIONS)
-        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
+        window, p_scale, flat = arguments.paper_cnn(p_scale, window, activation)
+        self.register_buffer("p_scale", torch.tensor(p_scale))
         act = getattr(nn, ACTIVATIONS[activation])
-        flat = 100 * (window - 50 + 1 - 10 + 1)
-        check_weights("window", window, flat * 100, "its first dense layer, 100 x 100 x (window - 58),")
         self.net = nn.Sequential(
             nn.Conv1d(2, 100, kernel_size=50),  # seat, body
             nn.Tanh(),
@@ -67,10 +51,7 @@ class PaperCNN(nn.Module):
             nn.Linear(10, 2),
         )
 
-    @staticmethod
-    def window_bounds(window: int = 500, **arguments) -> tuple[int, int | None]:
-        """It reads windows of its ``window`` steps alone: the flattened features size its first dense layer."""
-        return window, window
+    window_bounds = staticmethod(arguments.paper_cnn_window)
 
     def output_bounds(self) -> None:
         """None: the absolute-value head is unbounded."""
@@ -78,14 +59,6 @@ class PaperCNN(nn.Module):
 
     def forward(self, signals: torch.Tensor) -> torch.Tensor:
         return self.net(signals).abs() * self.p_scale
-
-
-def checked_layers(n_layers) -> int:
-    """n_layers, checked before 2^n_layers is computed: 10^30 layers would hold the process in that power."""
-    n_layers = check_int("n_layers", n_layers, 1)
-    if n_layers > LAYERS_MAX:
-        bad("n_layers", n_layers, f"must lie in [1, {LAYERS_MAX}] (each layer halves the window)")
-    return n_layers
 
 
 class FastCNN(nn.Module):
@@ -125,19 +98,9 @@ class FastCNN(nn.Module):
         downsample: str = "stride",
     ):
         super().__init__()
-        channels = check_int("channels", channels, 1)
-        n_layers = checked_layers(n_layers)
-        kernel_size = check_int("kernel_size", kernel_size, 1)
-        if kernel_size % 2 == 0:
-            bad("kernel_size", kernel_size, "an odd integer (for 'same' padding)")
-        how = "channels x (3 + (n_layers - 1) x channels) x kernel_size"
-        check_weights("channels", channels, channels * (3 + (n_layers - 1) * channels) * kernel_size, how)
-        check_number("margin", margin, 0, 1)
-        check_number("bn_momentum", bn_momentum, 0, 1, low_open=True)
-        check_choice("downsample", downsample, DOWNSAMPLES)
-        lo, hi = check_pair("p_min", p_min), check_pair("p_max", p_max)
-        if not all(a < b for a, b in zip(lo, hi)):
-            bad("p_max", list(p_max), f"above p_min = {list(p_min)} for each parameter")
+        channels, n_layers, kernel_size, lo, hi = arguments.fast_cnn(
+            p_min, p_max, channels, n_layers, kernel_size, margin, bn_momentum, downsample
+        )
         log_lo, log_hi = torch.tensor(lo).log(), torch.tensor(hi).log()
         pad = margin * (log_hi - log_lo)
         self.register_buffer("log_lo", log_lo - pad)
@@ -157,10 +120,7 @@ class FastCNN(nn.Module):
         self.features = nn.Sequential(*layers)
         self.head = nn.Linear(channels, 2)
 
-    @staticmethod
-    def window_bounds(n_layers: int = 4, **arguments) -> tuple[int, None]:
-        """Any window of at least 2^n_layers steps: each layer halves the sequence, which must keep a sample."""
-        return 2 ** checked_layers(n_layers), None
+    window_bounds = staticmethod(arguments.fast_cnn_window)
 
     def output_bounds(self) -> tuple[np.ndarray, np.ndarray]:
         """The head's range: the prior widened by ``margin`` (its buffers, so a loaded network's own)."""

@@ -14,10 +14,8 @@ import numpy as np
 import torch
 from torch import nn
 
-from hybrid_sysid.core.checks import ConfigError, bad, check_choice, check_number, check_pair
-from hybrid_sysid.core.options import TARGETS, WEIGHTINGS
+from hybrid_sysid.model import arguments
 from hybrid_sysid.physics import relative_states
-from hybrid_sysid.physics.filters import filter_taps
 
 # model selection under trainer.monitor=auto: the labelled relative deviation, or the objective's own loss on the
 # validation windows, which keeps a label-free run label-free
@@ -60,7 +58,7 @@ class LabelledObjective(nn.Module):
 
     def __init__(self, p_scale: Sequence[float]):
         super().__init__()
-        self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
+        self.register_buffer("p_scale", torch.tensor(arguments.labelled(p_scale)))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         err = (pred - batch["params"].to(pred)) / self.p_scale
@@ -115,28 +113,17 @@ class HybridObjective(nn.Module):
         p_scale: Sequence[float] | None = None,
     ):
         super().__init__()
-        check_choice("target", target, TARGETS)
-        check_choice("weighting", weighting, WEIGHTINGS)
-        if target != "residual" and p_scale is None:
-            raise ConfigError("p_scale", missing=True, allowed=f"target = {target!r} needs it (${{p_prior:scale}})")
-        if target != "residual" and weighting != "none":
-            bad("weighting", weighting, f"none with target = {target!r}")
+        checked = arguments.hybrid(normalize, filter, weighting, dt, measurement, target, p_scale)
         self.target = target
-        if p_scale is not None:
-            self.register_buffer("p_scale", torch.tensor(check_pair("p_scale", p_scale)))
-        if weighting == "eiv" and filter is None:
-            bad("weighting", weighting, "none without a filter (unfiltered, integrated noise has no finite variance)")
+        if checked.p_scale is not None:
+            self.register_buffer("p_scale", torch.tensor(checked.p_scale))
         self.normalize = bool(normalize)
-        self.filter, self.weighting = (dict(filter) if filter is not None else None), weighting
+        self.filter, self.weighting, self.fir = checked.filter, weighting, checked.fir
         self.keys = ("seat_f", "rel_vel_f", "rel_disp_f") if filter is not None else ("rel_vel", "rel_disp")
         # the band-pass taps the data module filters the batches with (hybrid_sysid.training.build), so the
         # batches always carry what this objective reads
-        if filter is not None:
-            if dt is None:
-                raise ConfigError("dt", missing=True, allowed="a filtered objective needs the data's step (${data.dt})")
-            self.fir = filter_taps(self.filter, dt)
-            if weighting == "eiv":
-                self.register_buffer("gram", torch.tensor(noise_gram(self.fir, dt, measurement), dtype=torch.float32))
+        if weighting == "eiv":
+            self.register_buffer("gram", torch.tensor(noise_gram(self.fir, dt, measurement), dtype=torch.float32))
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:
         if self.filter is not None:
@@ -204,10 +191,7 @@ class CombinedObjective(nn.Module):
         measurement: str = "consistent",
     ):
         super().__init__()
-        check_number("labelled_weight", labelled_weight, 0)
-        check_number("hybrid_weight", hybrid_weight, 0)
-        if labelled_weight == 0 and hybrid_weight == 0:
-            bad("hybrid_weight", hybrid_weight, "labelled_weight and hybrid_weight must not both be zero")
+        arguments.combined(p_scale, labelled_weight, hybrid_weight, normalize, filter, weighting, dt, measurement)
         self.labelled_weight, self.hybrid_weight = float(labelled_weight), float(hybrid_weight)
         self.labelled = LabelledObjective(p_scale=p_scale)
         self.hybrid = HybridObjective(
