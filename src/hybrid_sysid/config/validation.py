@@ -3,9 +3,9 @@
 Each value is checked once, by what owns it: the data's by DatasetSpec, WindowSettings and BatchSettings, the
 optimiser's by OptimSettings, the network's, the objective's and a baseline's by their constructors (the network
 also run on one window; this package's own networks and objectives first by their constructors' torch-free part,
-model.arguments, so that a refusal imports no torch). Each names its own argument, and this module places it in the config
-(``config_key``: ``window`` is ``data.window``); it checks itself only what no object owns (seeds, noise levels,
-the trainer, the memory bound).
+model.arguments, so that a refusal imports no torch). Each names its own argument, and this module places it in
+the config (``config_key``: ``window`` is ``data.window``); it checks itself only what no object owns (seeds, noise
+levels, the trainer, the memory bound).
 """
 
 from __future__ import annotations
