@@ -30,6 +30,10 @@ def test_an_estimator_preset_selects_its_model_and_objective_or_a_baseline(name)
         assert (choices.baseline.prior is not None) == ("_map" in name or bayes)
         return
     model, objective = name.split("_", 1)
+    # a preset named for a network option: its model, its objective and the option it sets
+    objective, option = {"partner": ("cross_segment", "partner")}.get(objective, (objective, None))
+    if option is not None:
+        assert choices.model.net[option] is True and composed(f"model={model}").model.net[option] is False
     assert choices.baseline is None
     assert choices.model.net._target_.endswith({"cnn": "FastCNN", "anchored": "AnchoredCNN"}[model])
     assert OmegaConf.to_container(choices.objective) == OmegaConf.to_container(

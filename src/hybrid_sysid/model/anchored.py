@@ -23,6 +23,8 @@ from hybrid_sysid.physics.seat_fit import SeatFit, fit_windows
 
 N_STATS = 8  # what the head reads of the fit: log p (2), log se (2), unexplained share, correlation, valid (2)
 N_PRIOR_STATS = 5  # and of the MAP fit, with a prior: log p (2), log se (2), valid
+# the partner's share before training: 0.12 at noise 0.1, 0.001 at 0.01 (a = -2, softplus(1.8546) = 2)
+SIGMA_REF, MIX_INIT = 0.1, (-2.0, 1.8546)
 MAX_FACTOR = 2.0  # |log| of the factor the network may put on the MAP fit: a correction, not a new estimate
 
 
@@ -65,6 +67,11 @@ class AnchoredCNN(FastCNN):
         where the window's Bayes estimate is not finite, p is kept. Training steps never see it: it has no
         weights, and a Bayes fit costs about 4 ms a window (0.25 s a step of 64). Validation, in evaluation mode,
         scores the blend, so the checkpoint kept is the best blended one.
+    partner: True: a second estimate, FastCNN's bounded head on the trunk's features, trained by the same objective
+        on its own (``auxiliary``, model.module) and mixed in by a share that grows with the window's noise (the
+        likelihood fit's sigma): p^(1 - m) p_partner^m, a and b of m learned. A fit-free network is the better
+        estimate at noise 0.1 and the worse below 0.03 (docs/results_notes.md); the share lets each lead where it
+        is better, and keeps clean windows exact.
     trunk: False: the head reads the fits' statistics alone, without the convolutional trunk's features of the
         window (with a prior, those statistics hold what the trunk found, at a fraction of a step's cost).
 
@@ -89,17 +96,22 @@ class AnchoredCNN(FastCNN):
         prior: dict | None = None,
         trunk: bool = True,
         blend: float | None = None,
+        partner: bool = False,
         **cnn,
     ):
         super().__init__(p_min, p_max, **cnn)
         checked = arguments.anchored(
-            p_min, p_max, dt, measurement, filter, tau_min, tau_max, anchor, fix, prior, trunk, blend, **cnn
+            p_min, p_max, dt, measurement, filter, tau_min, tau_max, anchor, fix, prior, trunk, blend, partner, **cnn
         )
         self.fir, self.dt, self.measurement = checked.fir, float(dt), measurement
         self.anchor_kind, self.fix = anchor, fix
         self.eiv, self.map, self.bayes, self.blend = checked.eiv, checked.map, checked.bayes, checked.blend
         self.trunk = trunk
-        if not trunk:  # no parameters that nothing reads (weight decay, DDP's unused-parameter check)
+        self.partner, self.auxiliary = partner, ()
+        if partner:  # its own head on the trunk's features, and the mix's logit a + b (log sigma - log SIGMA_REF)
+            self.partner_head = nn.Linear(self.head.in_features, 2)
+            self.mix = nn.Parameter(torch.tensor(MIX_INIT))
+        if not trunk and not partner:  # no parameters that nothing reads (weight decay, DDP's unused-parameter check)
             self.features = nn.Sequential()
         self.log_tau = (math.log(tau_min), math.log(tau_max) - math.log(tau_min))
         width = self.head.in_features
@@ -160,8 +172,9 @@ class AnchoredCNN(FastCNN):
             map_ratio, map_log_se, map_valid = self._stats(p_map, se_map)
             map_valid = map_valid.all(dim=1, keepdim=True)
             parts += [map_ratio, map_log_se, map_valid.to(signals)]
+        features = self.embed(signals) if self.trunk or self.partner else None
         if self.trunk:
-            parts.insert(0, self.embed(signals))
+            parts.insert(0, features)
         out = self.head(torch.cat(parts, dim=1))
         p_net = self.bounded(out[:, :2])
         if self.map is not None:
@@ -172,7 +185,25 @@ class AnchoredCNN(FastCNN):
         tau = torch.exp(self.log_tau[0] + self.log_tau[1] * torch.sigmoid(out[:, 2:]))
         w = torch.where(valid, tau.pow(2) / (tau.pow(2) + se.pow(2)), 0.0)
         p = w * torch.where(valid, p_fit, p_net) + (1 - w) * p_net
-        return p if self.bayes is None or self.training else self.blended(p, *raw)
+        if self.bayes is not None and not self.training:
+            p = self.blended(p, *raw)
+        return p if not self.partner else self.mixed(p, features, raw[1][2], w)
+
+    def mixed(self, p: torch.Tensor, features: torch.Tensor, out, gate: torch.Tensor) -> torch.Tensor:
+        """p^(1 - m) p_partner^m, m = (1 - gate) sigmoid(a + softplus(b) (log sigma - log SIGMA_REF)), sigma the seat
+        noise the window's likelihood fit estimates (out: its EivFit); p where sigma or either p is not defined.
+        gate: the fit's weight w, 1 to about 1e-6 on a clean window, whose exact fit the partner so leaves alone
+        whatever a and b became."""
+        p_partner = self.bounded(self.partner_head(features))
+        self.auxiliary = (p_partner,) if self.training else ()  # trained on its own too (model.module)
+        sigma = torch.from_numpy(np.sqrt(out.ml.sigma2)).to(p)[:, None]
+        ok = torch.isfinite(sigma) & (sigma > 0) & torch.isfinite(p) & (p > 0)
+        # the slope through softplus: the share grows with the noise, so clean windows keep the exact fit
+        slope = nn.functional.softplus(self.mix[1])
+        logit = self.mix[0] + slope * (torch.log(sigma.where(ok, SIGMA_REF)) - math.log(SIGMA_REF))
+        m = (1 - gate) * torch.sigmoid(logit)
+        mixed = torch.exp((1 - m) * torch.log(p.where(ok, 1.0)) + m * torch.log(p_partner))
+        return torch.where(ok, mixed, p)
 
     def blended(self, p: torch.Tensor, x: np.ndarray, raw: tuple) -> torch.Tensor:
         """p^g p_bayes^(1 - g) per window and parameter (g = ``blend``), the mean of the two in log p; p where

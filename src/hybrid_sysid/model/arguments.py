@@ -127,6 +127,7 @@ def anchored(
     prior: dict | None = None,
     trunk: bool = True,
     blend: float | None = None,
+    partner: bool = False,
     **cnn,
 ) -> AnchoredArguments:
     """AnchoredCNN's checked arguments and its fits (numpy objects, without weights)."""
@@ -158,6 +159,10 @@ def anchored(
         bayes = ErrorsInVariablesBayes(noise_ratio=1.0, prior=prior, dt=float(dt), **band)
     if not isinstance(trunk, bool):
         bad("trunk", trunk, "true or false")
+    if not isinstance(partner, bool):
+        bad("partner", partner, "true or false")
+    if partner and prior is None:
+        bad("partner", partner, "false without a prior (its share follows the noise the MAP fit's likelihood finds)")
     return AnchoredArguments(checked_cnn, band, fir, eiv, fit_map, bayes, blend)
 
 

@@ -48,6 +48,9 @@ class IdentificationModule(L.LightningModule):
 
     def training_step(self, batch, batch_idx):
         loss = self.objective(self(batch["signals"]), batch)
+        # a network with a second estimate of its own (model.anchored's partner) trains it by the same objective
+        for extra in getattr(self.net, "auxiliary", ()):
+            loss = loss + self.objective(extra, batch)
         if not torch.isfinite(loss):  # global_step counts the steps taken before this one
             raise FloatingPointError(
                 f"training loss is {loss.item()} at step {self.global_step}; lower model.optim.lr or check the data"

@@ -21,7 +21,7 @@ from hybrid_sysid.report.markdown import markdown_table
 from hybrid_sysid.report.stats import CONFIDENCE, wilcoxon_p
 from hybrid_sysid.runs.layout import PREDICTIONS
 
-CANDIDATES = ("anchored_cross_segment", "anchored_label_free")  # the label-free anchored estimators
+CANDIDATES = ("anchored_cross_segment", "anchored_partner", "anchored_label_free")  # the label-free anchored ones
 CLASSICAL = ("ls", "eiv", "eiv_map", "eiv_bayes")  # the fits without a network, fixes aside
 READ = (*CANDIDATES, *CLASSICAL, "eiv_fix")  # the estimators whose predictions the table pairs
 EXACT = 1e-4  # 0.01%: "exact" on clean consistent windows
