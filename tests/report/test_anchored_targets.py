@@ -3,6 +3,8 @@ a known factor of a reference's give that factor as the ratio, its interval and 
 "best classical" is the classical fit with the lowest mean; a fault's noise-free goal asks exactness where the
 fixed fit is exact."""
 
+import re
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -89,6 +91,12 @@ def test_each_goal_reads_its_ratio_interval_and_verdict(tmp_path):
     assert best[1] == "ls" and best[3].startswith("0.857") and best[5] == "yes"  # 0.6 / 0.7, against ls
     assert rows[("clean", 0.0, "p1")][5] == "yes"  # exact
     assert rows[("clean", 0.1, "p1")][4] == "<= 18.50%"
+    # an absolute limit: the value over it, and its interval about as wide as the normal one of the mean's
+    a = np.concatenate([0.5 * base_devs(s) for s in (0, 1)])
+    ratio, low, high = (float(x) for x in re.findall(r"[\d.]+", rows[("clean", 0.1, "p1")][3]))
+    half = 1.96 * a.std(ddof=1) / np.sqrt(len(a)) / 0.185
+    assert ratio == pytest.approx(a.mean() / 0.185, abs=5e-4) and low < ratio < high
+    assert high - low == pytest.approx(2 * half, rel=0.2)
     assert rows[("gain", 0.0, "p1")][4:6] == ["<= 0.01%", "**no**"]  # the fixed fit is exact there, it is not
     assert rows[("gain", 0.03, "p1")][4:6] == ["<= 1.1x", "yes"] and rows[("gain", 0.03, "p2")][5] == "**no**"
 

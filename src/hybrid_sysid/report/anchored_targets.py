@@ -104,11 +104,16 @@ def _row(fault, goal: Goal, param, candidate, value, here) -> list[str] | None:
     head = [fault, f"{goal.noise:g}", param, pct(value)]
     if goal.reference is None:
         met = value <= goal.limit
+        ratio = "-"
+        if goal.limit > EXACT:  # the value over the limit, with the interval of its mean over the recordings
+            a = _rows_of(here, candidate).drop_duplicates(["seed", "recording"]).rel_dev.to_numpy()
+            low, high = ratio_interval(a, np.full(len(a), goal.limit))
+            ratio = f"{value / goal.limit:.3f} [{low:.3f}, {high:.3f}]"
         return [
             *head,
             "-",
             "-",
-            "-",
+            ratio,
             f"<= {pct(goal.limit)}%",
             "yes" if met else "**no**",
             "-",
