@@ -27,7 +27,8 @@ class SplitPredictor(Protocol):
 
 class Network(Protocol):
     """A torch module that maps windows (B, 2, W), channel 0 seat z'' and channel 1 body y'' in m/s^2, to (B, 2)
-    positive p = (p1, p2) in 1/s and 1/s^2."""
+    positive p = (p1, p2) in 1/s and 1/s^2. Optional: ``auxiliary``, a tuple of further (B, 2) estimates its last
+    training forward made, each of which training adds the objective of to the loss (model.anchored's partner)."""
 
     # the constructor's arguments that carry the prior of p (the config derives them: ${p_prior:...}), not the
     # architecture: a trained network's weights load into a network built with other values of them
