@@ -17,8 +17,10 @@ wrong, and each has its answer here:
 - A kind none of whose jobs ended yet. Its running job reports its steps (core.steps): the seconds per step since
   its first twentieth (its first steps warm the libraries up) times its max_steps, plus the overhead, time it
   minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
-  (``borrowed``) time it. A kind with none of these counts at the overhead alone: the estimate is then a lower
-  bound, and the line says "at least" and how many jobs it did not time.
+  (``borrowed``) time it, or, with nothing shown either way, a kind one fault, sensor, car or road away (a sweep
+  over the fault alone said "at least 0:17" with about 50 minutes left). A kind with none of these counts at the
+  overhead alone: the estimate is then a lower bound, and the line says "at least" and how many jobs it did not
+  time.
 - A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
   its time and recorded work are those of the steps left. It times nothing, as a re-run's completed job.
 """
@@ -99,6 +101,9 @@ def concurrency(events: list[dict]) -> int:
 SAME = 1.5  # two kinds' work within this factor...
 SLACK = 1.0  # ...and this many seconds: the one swept value they differ in does not change a job's time
 PAIRS = 200  # timed kinds at most whose pairs are compared (a sweep of hundreds of kinds: no borrowing)
+# swept keys that choose which recordings a job reads (a fault, a sensor, a car, a road class), not how many or
+# what is fitted to them: taken not to change a job's time until two timed kinds show otherwise
+DATA_KEYS = frozenset({"fault", "sensor", "car", "road"})
 
 
 def _parts(kind: str) -> dict[str, str]:
@@ -129,6 +134,14 @@ def borrowed(means: dict[str, float], wanted: set[str], works: dict[str, float])
     out = {}
     for kind in wanted:
         near = [means[t] for t in timed if (keys := differ(kind, t)) and all(same.get(k) for k in keys)]
+        # else a kind one value away in a key that picks the recordings, not the work (``DATA_KEYS``), where no two
+        # timed kinds showed that key to matter: a sweep over the fault alone has no such pair until a second
+        # fault ends, and its first fault's time is the best guess for the rest
+        near = near or [
+            means[t]
+            for t in timed
+            if (keys := differ(kind, t)) and len(keys) == 1 and keys <= DATA_KEYS and same.get(next(iter(keys))) is None
+        ]
         if near:
             out[kind] = statistics.fmean(near)
     return out
