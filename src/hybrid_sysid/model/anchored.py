@@ -69,7 +69,7 @@ class AnchoredCNN(FastCNN):
         scores the blend, so the checkpoint kept is the best blended one.
     partner: True: a second estimate, FastCNN's bounded head on the trunk's features, trained by the same objective
         on its own (``auxiliary``, model.module) and mixed in by a share that grows with the window's noise (the
-        likelihood fit's sigma): p^(1 - m) p_partner^m, a and b of m learned. A fit-free network is the better
+        likelihood fit's sigma, scaled by 1 - w): p^(1 - m) p_partner^m (``mixed``). A fit-free network is the better
         estimate at noise 0.1 and the worse below 0.03 (docs/results_notes.md); the share lets each lead where it
         is better, and keeps clean windows exact.
     trunk: False: the head reads the fits' statistics alone, without the convolutional trunk's features of the
@@ -108,7 +108,7 @@ class AnchoredCNN(FastCNN):
         self.eiv, self.map, self.bayes, self.blend = checked.eiv, checked.map, checked.bayes, checked.blend
         self.trunk = trunk
         self.partner, self.auxiliary = partner, ()
-        if partner:  # its own head on the trunk's features, and the mix's logit a + b (log sigma - log SIGMA_REF)
+        if partner:  # its own head on the trunk's features, and (a, b) of the share (``mixed``)
             self.partner_head = nn.Linear(self.head.in_features, 2)
             self.mix = nn.Parameter(torch.tensor(MIX_INIT))
         if not trunk and not partner:  # no parameters that nothing reads (weight decay, DDP's unused-parameter check)
