@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from hybrid_sysid.physics.eiv.matrices import schur
-from hybrid_sysid.physics.eiv.model import noise_weight
+from hybrid_sysid.physics.eiv.model import noise_weight, re_basis
 
 
 def re_sum(a, b):
@@ -22,7 +22,7 @@ def evaluate_criterion(theta, E, grid, q, derivatives=True):
     w = grid.weight / W
     e = E[0] + p1 * E[1] + p2 * E[2]
     T = (w @ grid.cos)[:, grid.toeplitz]
-    c = np.linalg.solve(T, ((w * e) @ grid.basis.conj()).real[..., None])[..., 0]
+    c = np.linalg.solve(T, re_basis(w * e, grid, conj=True)[..., None])[..., 0]
     eps = e - c @ grid.basis.T
     eps2 = eps.real**2 + eps.imag**2
     V = np.einsum("nk,nk->n", w, eps2)
@@ -50,8 +50,8 @@ def evaluate_criterion(theta, E, grid, q, derivatives=True):
                 - re_sum(wc * dW[i], E[j + 1])
                 + np.einsum("nk,nk->n", w * eps2, dW[i] * dW[j] - 0.5 * d2W[i][j] / W)
             )
-    gn = schur(gn, np.stack([(wF[i] @ grid.basis).real for i in range(2)], axis=1), T)
-    ex = schur(ex, np.stack([((w * G[i]) @ grid.basis.conj()).real for i in range(2)], axis=1), T)
+    gn = schur(gn, re_basis(np.stack(wF, axis=1), grid), T)
+    ex = schur(ex, re_basis(w[:, None] * np.stack(G, axis=1), grid, conj=True), T)
     scale = p[:, :, None] * p[:, None, :]  # d/dtheta_i = p_i d/dp_i
     g = g * p
     ex = ex * scale

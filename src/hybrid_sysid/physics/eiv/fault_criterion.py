@@ -7,6 +7,7 @@ import numpy as np
 
 from hybrid_sysid.physics.eiv.criterion import re_sum
 from hybrid_sysid.physics.eiv.matrices import schur
+from hybrid_sysid.physics.eiv.model import re_basis
 from hybrid_sysid.physics.faults.fix import Fix
 from hybrid_sysid.physics.faults.skew import SKEW_HALF_WIDTH, abs2, advance, advance_kernel, unit_powers
 
@@ -39,7 +40,7 @@ def evaluate_fault(theta, S, U, X, fix, grid, lam, n_samples, derivatives=True, 
     W = abs2(Aw) + lam * psi * QB
     w = grid.weight / W
     T = (w @ grid.cos)[:, grid.toeplitz]
-    c = np.linalg.solve(T, ((w * e) @ grid.basis.conj()).real[..., None])[..., 0]
+    c = np.linalg.solve(T, re_basis(w * e, grid, conj=True)[..., None])[..., 0]
     eps = e - c @ grid.basis.T
     eps2 = abs2(eps)
     V = np.einsum("nk,nk->n", w, eps2)
@@ -85,8 +86,8 @@ def evaluate_fault(theta, S, U, X, fix, grid, lam, n_samples, derivatives=True, 
                 - re_sum(wc * dW[i], de[j])
                 + np.einsum("nk,nk->n", w * eps2, dW[i] * dW[j] - 0.5 * d2W[(i, j)] / W)
             )
-    gn = schur(gn, np.stack([(wF[i] @ grid.basis).real for i in range(3)], axis=1), T)
-    ex = schur(ex, np.stack([((w * G[i]) @ grid.basis.conj()).real for i in range(3)], axis=1), T)
+    gn = schur(gn, re_basis(np.stack(wF, axis=1), grid), T)
+    ex = schur(ex, re_basis(w[:, None] * np.stack(G, axis=1), grid, conj=True), T)
     s = np.concatenate([p, np.ones((n, 1))], axis=1)  # d/dtheta_i = p_i d/dp_i for log p, eta as it is
     g = g * s
     ex = ex * s[:, :, None] * s[:, None, :]
