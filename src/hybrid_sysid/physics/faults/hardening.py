@@ -166,25 +166,16 @@ def seat_displacement(seat, body, p, c, dt, model):
         alpha, beta, implicit = p1 / dt + p2 / 2.0, p1 / dt - p2 / 2.0, 0.5
         rhs = np.concatenate([-seat[:, :1], -0.5 * (seat[:, 1:] + seat[:, :-1])], axis=1)
     cubic, explicit = implicit * c, (1.0 - implicit) * c
-    cubic3, explicit3 = 3.0 * cubic, 3.0 * explicit
     kinematic = dt * dt * (seat - body)[:, 1:-1]
     N = seat.shape[1]
-    d, free = np.empty_like(seat), np.empty_like(seat)
+    d, free = np.empty_like(seat, dtype=np.float64), np.empty_like(seat, dtype=np.float64)
     d[:, 0], free[:, 0] = 0.0, 1.0
     end = N  # the samples a pass recomputes: after the first, only those d_0 still reaches
+    # compiled: numpy's pass over the samples (compiled_hardening.numpy_pass, equal bit for bit) took 40% of the fit
+    from hybrid_sysid.physics.compiled_hardening import run_pass
+
     for attempt in range(DISPLACEMENT_PASSES):  # Gauss-Newton in d_0: the cube makes d's dependence on it nonlinear
-        for k in range(1, end):
-            last = d[:, k - 1]
-            r = beta * last + rhs[:, k]
-            if implicit < 1.0:
-                r -= explicit * last * last * last
-            x = r / alpha
-            for _ in range(4):  # Newton from the linear spring's d: the cube is a correction
-                x2 = x * x
-                x -= (x * (alpha + cubic * x2) - r) / (alpha + cubic3 * x2)
-            d[:, k] = x
-            slope = beta - explicit3 * last * last if implicit < 1.0 else beta
-            free[:, k] = free[:, k - 1] * slope / (alpha + cubic3 * x * x)
+        run_pass(d, free, rhs, alpha, beta, cubic, explicit, implicit, end)
         shape = np.diff(free, 2, axis=1)
         step = -np.einsum("nk,nk->n", np.diff(d, 2, axis=1) - kinematic, shape) / np.einsum("nk,nk->n", shape, shape)
         # below 1e-6 of d the linear correction is exact to 1e-12
