@@ -1,7 +1,8 @@
 """The quarter-car physics in plain numpy (no numba, torch, Lightning or Hydra), usable from a notebook.
 
 The compiled dataset kernels are ``hybrid_sysid.physics.compiled`` and ``compiled_sensors`` (the sensor faults of
-``physics.sensors``), imported only by ``hybrid_sysid.data``.
+``physics.sensors``), imported only by ``hybrid_sysid.data``; ``compiled_hardening``, the hardening fix's
+recursion, is imported at that fix's first fit.
 """
 
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED
