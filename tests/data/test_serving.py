@@ -20,7 +20,7 @@ from helpers.recordings import seat_recordings, write_folder
 
 SPEC = DatasetSpec(n_roads=6, n_masses=5, n_steps=400, seed=1)
 SERVED = ["window", "batch_size", "eval_batch_size", "train_std", "seed", "integration", "fir", "train_std_max"]
-SERVED += ["outside_fir", "outside_target"]
+SERVED += ["outside_fir", "outside_target", "outside_fix"]
 
 
 @pytest.fixture

@@ -46,7 +46,7 @@ class QuarterCarDataModule(L.LightningDataModule):
         **serving,
     ):
         """``serving``: Serving's keyword arguments (window, batch_size, eval_batch_size, train_std, seed,
-        integration, fir, train_std_max, outside_fir, outside_target)."""
+        integration, fir, train_std_max, outside_fir, outside_target, outside_fix)."""
         super().__init__()
         served = Serving(**serving)
         spec.validate()
@@ -66,6 +66,7 @@ class QuarterCarDataModule(L.LightningDataModule):
         self.train_std, self.seed, self.integration = float(served.train_std), served.seed, served.integration
         self.train_std_max = None if served.train_std_max is None else float(served.train_std_max)
         self.fir, self.outside_fir, self.outside_target = served.fir, served.outside_fir, served.outside_target
+        self.outside_fix = served.outside_fix
         self.data: WindowCutter | None = None
         self.train_windows: RandomWindows | None = None
         self._eval_cache: dict = {}
@@ -89,7 +90,9 @@ class QuarterCarDataModule(L.LightningDataModule):
         return self._cut(self.dataset)
 
     def _cut(self, dataset) -> WindowCutter:
-        return WindowCutter(dataset, self.window, self.integration, self.fir, self.outside_fir, self.outside_target)
+        return WindowCutter(
+            dataset, self.window, self.integration, self.fir, self.outside_fir, self.outside_target, self.outside_fix
+        )
 
     def _get_dataset(self) -> SimulatedDataset:
         # simulating runs numba's parallel kernel, whose OpenMP runtime torch shares: it leaves torch at numba's

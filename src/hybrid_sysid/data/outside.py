@@ -12,6 +12,12 @@ removes. So the fit's noise is independent of the window's, as in a recording wh
 
 "eiv": the errors-in-variables maximum likelihood of the two outside segments joined, started from the "ls" fit
 (data.outside_joined).
+
+Under a recording fault (``fix``, the fault's fix as the anchored estimator takes it) the "eiv" target is the
+likelihood fit with that fix, started from least squares with it (physics.faults, physics.eiv). The plain fits
+of a faulted recording are biased (skew: 11.5% on p1, clean; benchmarks/README.md), and a label-free network then
+learns the bias. The joined fit has no fix, so the fixed fit takes the longer outside segment alone, cropped to
+(n - W) // 2 samples: every row's piece then has one length, and the rows are fitted together.
 """
 
 from __future__ import annotations
@@ -19,11 +25,13 @@ from __future__ import annotations
 import numpy as np
 import torch
 
-from hybrid_sysid.core.checks import check_choice
+from hybrid_sysid.core.checks import bad, check_choice
 from hybrid_sysid.core.options import OUTSIDE_TARGETS as TARGETS
 from hybrid_sysid.data.outside_joined import fit_joined
 from hybrid_sysid.physics import relative_states
-from hybrid_sysid.physics.eiv import eiv_model
+from hybrid_sysid.physics.eiv import eiv_model, fit_eiv
+from hybrid_sysid.physics.eiv.fit import fix_samples
+from hybrid_sysid.physics.faults import fix_code
 from hybrid_sysid.physics.seat_fit import fit_seat
 
 CHUNK = 256  # rows filtered at once: bounds the float64 work arrays of a large evaluation batch (~30 MB)
@@ -34,6 +42,7 @@ CHUNK = 256  # rows filtered at once: bounds the float64 work arrays of a large 
 # 3 x 400 rows), the objective's loss at the true p at noise 0.1: limit 2, 0.17-0.20; 3, 0.18-0.21; none, 0.29-0.51;
 # least squares, 0.18. At 0.03 every limit gave 0.05, none 0.05-0.12, least squares 0.07.
 MAX_CORRECTION = 2.0
+SKEW_MAX = 0.02  # s: the skew fix's reach, the anchored estimator's (its likelihood fit's default)
 
 
 class OutsideFit:
@@ -54,6 +63,7 @@ class OutsideFit:
         fir,
         target: str | None = None,
         lengths: np.ndarray | None = None,
+        fix: str = "none",
     ):
         self.seat, self.body = seat_acc, body_acc
         self.dt, self.measurement, self.window = dt, measurement, window
@@ -61,9 +71,20 @@ class OutsideFit:
         check_choice("target", self.target, TARGETS)
         self.fir = np.asarray(fir, dtype=np.float64)
         self.n_steps = seat_acc.shape[1]
+        fix_code(fix)  # a registered fix, else a ConfigError naming fix
+        self.fix = fix if self.target == "eiv" else "none"  # least squares' target stays the plain fit
         # a user's recordings of several lengths are zero-padded to the longest (data.recordings): each row is
         # then fitted over its own samples only, rows of one length together
         self.lengths = np.full(len(seat_acc), self.n_steps) if lengths is None else np.asarray(lengths, np.int64)
+        if self.fix != "none":
+            need = max(len(self.fir) + 1, fix_samples(self.fix, eiv_model(measurement), dt, SKEW_MAX))
+            if (int(self.lengths.min()) - window) // 2 < need:
+                bad(
+                    "data.n_steps",
+                    int(self.lengths.min()),
+                    f"at least {window + 2 * need} samples: the {fix} fix's outside fit takes half of the "
+                    f"{need * 2} samples outside a window of {window}",
+                )
         self._fir_fft: dict[int, torch.Tensor] = {}
 
     def fir_fft(self, n_steps: int) -> tuple[int, torch.Tensor]:
@@ -116,6 +137,9 @@ class OutsideFit:
         filtered = torch.fft.irfft(spectra * fir_fft, nfft)[..., len(self.fir) - 1 : n].numpy()
         out = fit_seat(*filtered, weights=self.mask(starts, n))
         p, se = out.p, out.se
+        if self.fix != "none":
+            p_fix, se_fix, ok = self._fixed(seat, body, starts)
+            return np.where(ok[:, None], p_fix, p), np.where(ok[:, None], se_fix, se)
         if self.target == "eiv":
             model = eiv_model(self.measurement)
             p_eiv, se_eiv, ok = fit_joined(seat, body, starts, self.window, self.dt, model, p0=out.p)
@@ -124,3 +148,23 @@ class OutsideFit:
             p = np.where(ok[:, None], p_eiv, p)
             se = np.where(ok[:, None], se_eiv, se)
         return p, se
+
+    def _fixed(self, seat: np.ndarray, body: np.ndarray, starts: np.ndarray):
+        """The fault's fixed likelihood fit of each row's longer outside segment, its (n - W) // 2 samples nearest
+        the window: (p, se, ok), ok where it is defined, converged and within MAX_CORRECTION of its least-squares
+        start with the same fix."""
+        n = seat.shape[1]
+        length = (n - self.window) // 2
+        before = starts >= n - starts - self.window  # the segment before the window is the longer one
+        first = np.where(before, starts - length, starts + self.window)
+        at = first[:, None] + np.arange(length)
+        seat, body = np.take_along_axis(seat, at, axis=1), np.take_along_axis(body, at, axis=1)
+        rel_vel, rel_disp = relative_states(seat, body, self.dt, self.measurement)
+        code = fix_code(self.fix)
+        p0 = code.least_squares(seat, body, rel_vel, rel_disp, self.dt, self.measurement, self.fir, SKEW_MAX)
+        model = eiv_model(self.measurement)
+        fit = fit_eiv(seat, body, self.dt, model=model, p0=p0, fix=self.fix, skew_max=SKEW_MAX)
+        with np.errstate(invalid="ignore", divide="ignore"):
+            near = (np.abs(np.log(fit.p / p0)) <= np.log(MAX_CORRECTION)).all(axis=1)
+        ok = fit.converged & np.isfinite(fit.p).all(axis=1) & (near | ~np.isfinite(p0).all(axis=1))
+        return fit.p, fit.se, ok

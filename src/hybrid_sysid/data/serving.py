@@ -29,6 +29,7 @@ class Serving:
     train_std_max: float | None = BatchSettings.train_std_max
     outside_fir: np.ndarray | None = None  # the band-pass of the fit over each window's outside samples
     outside_target: str | None = None  # that fit, "eiv" or "ls" (None: "ls")
+    outside_fix: str = "none"  # the recording fault's fix that fit takes ("eiv" only; data.outside)
 
     @property
     def batches(self) -> BatchSettings:

@@ -102,7 +102,8 @@ class WindowCutter:
 
     ``outside_fir`` (the objective's, or None): ``outside`` is then the fit over each window's outside samples
     (hybrid_sysid.data.outside), whose "p_out" and "se_out" the training and evaluation batches carry;
-    ``outside_target`` the fit (the objective's, one of data.outside.TARGETS; None: "ls").
+    ``outside_target`` the fit (the objective's, one of data.outside.TARGETS; None: "ls"), ``outside_fix`` the
+    recording fault's fix it takes.
     """
 
     def __init__(
@@ -113,6 +114,7 @@ class WindowCutter:
         fir: np.ndarray | None = None,
         outside_fir: np.ndarray | None = None,
         outside_target: str | None = None,
+        outside_fix: str = "none",
     ):
         self.dt = ds.spec.dt
         self.measurement = ds.spec.measurement
@@ -127,7 +129,15 @@ class WindowCutter:
         self.outside = None
         if outside_fir is not None:
             self.outside = OutsideFit(
-                ds.seat_acc, ds.body_acc, self.dt, self.measurement, window, outside_fir, outside_target, self.lengths
+                ds.seat_acc,
+                ds.body_acc,
+                self.dt,
+                self.measurement,
+                window,
+                outside_fir,
+                outside_target,
+                self.lengths,
+                outside_fix,
             )
         self.fir = None
         if fir is not None:

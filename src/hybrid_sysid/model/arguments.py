@@ -245,6 +245,7 @@ def cross_segment(
     floor: float = 0.01,
     target: str = "ls",
     weighted: bool = True,
+    fix: str = "none",
 ) -> CrossSegmentArguments:
     """CrossSegmentObjective's checked arguments and the outside fit's band-pass."""
     p_scale = check_pair("p_scale", p_scale)
@@ -256,6 +257,9 @@ def cross_segment(
     outside_fir = filter_taps(filter, dt)
     if not isinstance(weighted, bool):
         raise ConfigError("weighted", weighted, allowed="true or false")
+    from hybrid_sysid.physics.faults import fix_code  # here: the registry loads the faults' plugins
+
+    fix_code(fix)
     return CrossSegmentArguments(p_scale, floor, filter, outside_fir)
 
 

@@ -30,6 +30,8 @@ class CrossSegmentObjective(nn.Module):
     towards zero under noise on the body channel, and the network would learn that bias; the likelihood fit is
     consistent under it (docs/label_free.md). The constructor's default is "ls": a saved config written before the
     argument existed was trained with it. conf/objective/cross_segment.yaml sets "eiv".
+    ``fix``: the simulated fault's fix (conf: ``${fault_fix:}``), which the "eiv" target then takes (data.outside):
+    the plain fit of a faulted recording is biased, and the network would learn that bias too.
     w_i = 1 / (se_out_i + ``floor``), divided by its mean over the batch, per parameter: each parameter keeps the
     total weight the labelled objective gives it, and within it a row counts by how well its outside fit is
     determined. The floor stops rounding from ranking near-exact fits: below it (1% by default) every fit counts
@@ -45,6 +47,7 @@ class CrossSegmentObjective(nn.Module):
     fir = None  # the network's window needs no filtered signals: only the outside fit is band-passed
     outside_fir: np.ndarray | None = None  # set below: the band-pass of the outside fit
     outside_target: str | None = None  # set below: ``target``, the fit the data module computes
+    outside_fix: str = "none"  # set below: ``fix``, the fault's fix of that fit
 
     def __init__(
         self,
@@ -54,12 +57,14 @@ class CrossSegmentObjective(nn.Module):
         floor: float = 0.01,
         target: str = "ls",
         weighted: bool = True,
+        fix: str = "none",
     ):
         super().__init__()
-        checked = arguments.cross_segment(p_scale, filter, dt, floor, target, weighted)
+        checked = arguments.cross_segment(p_scale, filter, dt, floor, target, weighted, fix)
         self.register_buffer("p_scale", torch.tensor(checked.p_scale))
         self.floor, self.filter, self.outside_fir = checked.floor, checked.filter, checked.outside_fir
         self.target = self.outside_target = target
+        self.fix = self.outside_fix = fix
         self.weighted = weighted
 
     def forward(self, pred: torch.Tensor, batch: dict) -> torch.Tensor:

@@ -20,4 +20,5 @@ def window_arguments(cfg: DictConfig, objective=None) -> dict:
         outside_fir=None if objective is None else objective.outside_fir,
         # an objective of a plugin need not declare a target: its outside fit, if any, is least squares
         outside_target=getattr(objective, "outside_target", None),
+        outside_fix=getattr(objective, "outside_fix", "none"),
     )
