@@ -1,8 +1,14 @@
 import os
 import sys
 
-import pytest
-from hydra import compose, initialize_config_dir
+# numpy's OpenBLAS runs one thread, in this process and in the app processes the tests start (they inherit it),
+# set before numpy is first imported. The fits' matrices are small; beside the processes started early
+# (helpers/started_early.py) a second BLAS thread waits for a busy core, and a product of 192 x 27 by 27 x 251
+# complex numbers then took 12.7 ms instead of 0.28 (benchmarks/README.md, "The default suite").
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+
+import pytest  # noqa: E402
+from hydra import compose, initialize_config_dir  # noqa: E402
 
 pytest.register_assert_rewrite("helpers")  # a plugin below, imported here first
 from helpers.app_process import run_app  # noqa: E402
