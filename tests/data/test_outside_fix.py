@@ -79,7 +79,7 @@ def test_least_squares_target_and_no_fault_keep_the_plain_fit():
 def test_recordings_too_short_for_the_fix_are_refused_naming_n_steps():
     spec = DatasetSpec(n_roads=2, n_masses=2, n_steps=700, seed=1, sensor=SensorFaults(skew_max=0.01))
     ds = generate_dataset(spec)
-    with pytest.raises(ConfigError, match="data.n_steps"):
+    with pytest.raises(ConfigError, match="n_steps"):
         OutsideFit(ds.seat_acc, ds.body_acc, DT, spec.measurement, W, FIR, "eiv", fix="skew")
     with pytest.raises(ConfigError, match="fix"):
         OutsideFit(ds.seat_acc, ds.body_acc, DT, spec.measurement, W, FIR, "eiv", fix="wobble")

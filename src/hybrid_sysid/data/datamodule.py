@@ -9,6 +9,7 @@ from torch.utils.data import DataLoader
 
 from hybrid_sysid.data.cache import get_dataset
 from hybrid_sysid.data.dataset import SimulatedDataset
+from hybrid_sysid.data.outside import check_fix_fits
 from hybrid_sysid.data.serving import Serving, takes_serving
 from hybrid_sysid.data.spec import DatasetSpec, WindowSettings, check_eval_windows
 from hybrid_sysid.data.splits import SPLITS
@@ -53,6 +54,9 @@ class QuarterCarDataModule(L.LightningDataModule):
         self.settings = WindowSettings(served.window, served.integration, train_fraction, val_fraction)
         taps, outside_taps = (None if f is None else len(f) for f in (served.fir, served.outside_fir))
         self.settings.validate(spec, taps=taps, outside_taps=outside_taps)
+        if outside_taps is not None:
+            fit = served.outside_fix, served.outside_target
+            check_fix_fits(*fit, spec.n_steps, served.window, outside_taps, spec.dt, spec.measurement)
         self._serve(served)
         self.split = self.settings.split(spec)
         self.spec, self.cache_dir = spec, cache_dir

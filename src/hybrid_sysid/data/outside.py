@@ -45,6 +45,21 @@ MAX_CORRECTION = 2.0
 SKEW_MAX = 0.02  # s: the skew fix's reach, the anchored estimator's (its likelihood fit's default)
 
 
+def check_fix_fits(fix: str, target: str | None, n_steps: int, window: int, taps: int, dt: float, measurement: str):
+    """The fixed target's segment, (n_steps - window) // 2 samples, must hold the fix's transient and the least-
+    squares start's band-pass (``taps``): ConfigError naming n_steps otherwise."""
+    if fix == "none" or target != "eiv":
+        return
+    need = max(taps + 1, fix_samples(fix, eiv_model(measurement), dt, SKEW_MAX))
+    if (n_steps - window) // 2 < need:
+        bad(
+            "n_steps",
+            n_steps,
+            f"must be >= data.window + {2 * need} = {window + 2 * need}: under the fault, the fit over the samples "
+            f"outside a window (objective=cross_segment) takes {need} of them with its {fix} fix",
+        )
+
+
 class OutsideFit:
     """The outside fit of the windows of one dataset: ``fit(rows, starts, std, normals)`` -> {"p_out", "se_out"}.
 
@@ -76,15 +91,7 @@ class OutsideFit:
         # a user's recordings of several lengths are zero-padded to the longest (data.recordings): each row is
         # then fitted over its own samples only, rows of one length together
         self.lengths = np.full(len(seat_acc), self.n_steps) if lengths is None else np.asarray(lengths, np.int64)
-        if self.fix != "none":
-            need = max(len(self.fir) + 1, fix_samples(self.fix, eiv_model(measurement), dt, SKEW_MAX))
-            if (int(self.lengths.min()) - window) // 2 < need:
-                bad(
-                    "data.n_steps",
-                    int(self.lengths.min()),
-                    f"at least {window + 2 * need} samples: the {fix} fix's outside fit takes half of the "
-                    f"{need * 2} samples outside a window of {window}",
-                )
+        check_fix_fits(self.fix, self.target, int(self.lengths.min()), window, len(self.fir), dt, measurement)
         self._fir_fft: dict[int, torch.Tensor] = {}
 
     def fir_fft(self, n_steps: int) -> tuple[int, torch.Tensor]:
