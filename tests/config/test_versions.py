@@ -84,3 +84,19 @@ def test_a_version_this_package_does_not_know_is_refused(make_cfg):
     validate(make_cfg(*TINY, f"{KEY}=0"), training=False)  # a run saved before versions, evaluated
     with pytest.raises(ConfigError, match=rf"^{KEY} = {VERSION + 1} is not allowed: a version of the config schema"):
         validate(make_cfg(*TINY, f"{KEY}={VERSION + 1}"), training=False)
+
+
+@pytest.mark.parametrize(
+    "option, key",
+    [(["model=anchored"], "model.net.partner"), (["objective=cross_segment"], "objective.fix")],
+)
+def test_a_key_an_option_gained_reads_as_what_a_config_saved_before_it_did(make_cfg, option, key):
+    """A group's option has no schema version: a config holding the option but not the key is filled in, a config
+    of another option is left alone, and a cross_segment run under a fault had no fix, which today's is not."""
+    now = plain(make_cfg(*TINY, *option))
+    assert first_difference(without(now, key), now) is None
+    other = plain(make_cfg(*TINY))
+    assert key not in upgraded(flatten(other))
+    if key == "objective.fix":
+        faulted = plain(make_cfg(*TINY, *option, "fault=gain"))
+        assert first_difference(without(faulted, key), faulted) == (key, "none", "${fault_fix:}")

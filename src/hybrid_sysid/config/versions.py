@@ -29,6 +29,22 @@ ADDED = (
 )
 
 
+def _outside_fix(flat: dict) -> str:
+    """objective.fix of a cross_segment config saved before the key: its target had no fix. On clean recordings
+    that is what today's ``${fault_fix:}`` gives; under a fault "none", which a config composed today is not."""
+    clean = all(flat.get(key, default) == default for key, default in fault_defaults().items())
+    return "${fault_fix:}" if clean else "none"
+
+
+# Keys an option of a config group gained (a group's option is not a section of the schema, so it has no version):
+# (dotted key, the default that does what a config saved before it did, or a function of the flattened config
+# giving it, and the option's _target_ under the key's parent). Filled in where a config holds that option.
+OPTION_ADDED = (
+    ("model.net.partner", False, "hybrid_sysid.model.anchored.AnchoredCNN"),
+    ("objective.fix", _outside_fix, "hybrid_sysid.model.cross_segment.CrossSegmentObjective"),
+)
+
+
 def version_of(flat: dict) -> int:
     """The schema version of a flattened saved config: 0 when it has none (or one that is no whole number)."""
     version = flat.get(KEY, 0)
@@ -50,6 +66,9 @@ def upgraded(flat: dict) -> dict:
     the config sets to null (``transfer: null``) is not added: the section holds no keys."""
     version = version_of(flat)
     added = {k: v for k, v in added_since(version).items() if not _in_null_section(flat, k)}
+    for key, default, target in OPTION_ADDED:
+        if key not in flat and flat.get(key.rsplit(".", 1)[0] + "._target_") == target:
+            added[key] = default(flat) if callable(default) else default
     return {**added, **flat, KEY: max(version, VERSION)}
 
 
