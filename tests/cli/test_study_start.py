@@ -11,7 +11,6 @@ import subprocess
 import sys
 import tempfile
 import textwrap
-import time
 from glob import glob
 from pathlib import Path
 
@@ -19,38 +18,40 @@ import pytest
 
 from helpers.app_process import user_env
 
-# one search's start, up to its study: every process waits for the same moment, then opens the study
+# one search's start, up to its study: every process, once imported, marks itself ready and waits until all are,
+# then opens the study (a barrier, so the opens race within milliseconds, not after a fixed, generous delay)
 START = textwrap.dedent("""
     import sys, time
     from pathlib import Path
     from optuna.distributions import FloatDistribution
     from hybrid_sysid.launch.search import open_study
     from hybrid_sysid.experiments.search import StudySettings
-    url, sweep, at = sys.argv[1], Path(sys.argv[2]), float(sys.argv[3])
+    url, sweep, n = sys.argv[1], Path(sys.argv[2]), int(sys.argv[3])
     space = {"model.optim.lr": FloatDistribution(0.002, 0.05, log=True)}
     s = StudySettings(space, [], {"seed": 0}, 4, 1, "minimize", "race", url)
     sweep.mkdir(parents=True, exist_ok=True)
-    while time.time() < at:
-        pass
+    (sweep.parent / f"ready-{sweep.name}").touch()
+    end = time.time() + 60
+    while len(list(sweep.parent.glob("ready-*"))) < n and time.time() < end:
+        time.sleep(0.001)  # leaves the cores to the processes still importing
     study = open_study(s, sweep)
     print("taken by", study.user_attrs["search"]["sweep_dir"])
 """)
 SEARCHES = 3
 
 
-def start_together(tmp: Path, url: str) -> list[subprocess.CompletedProcess]:
+def start_together(tmp: Path, url: str, searches: int = SEARCHES) -> list[subprocess.CompletedProcess]:
     script = tmp / "start.py"
     script.write_text(START)
-    at = str(time.time() + 3 + 2 * SEARCHES)  # every process imported by then, on two cores
     procs = [
         subprocess.Popen(
-            [sys.executable, str(script), url, str(tmp / f"search{i}"), at],
+            [sys.executable, str(script), url, str(tmp / f"search{i}"), str(searches)],
             env=user_env(),
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
         )
-        for i in range(SEARCHES)
+        for i in range(searches)
     ]
     return [subprocess.CompletedProcess(p.args, p.wait(120), *p.communicate()) for p in procs]
 
@@ -141,7 +142,7 @@ def test_searches_starting_together_on_a_fresh_postgresql_database(tmp_path, pos
 
 def test_a_storage_that_cannot_be_opened_is_one_line(tmp_path):
     url = f"postgresql+psycopg://someone:secret@127.0.0.1:{free_port()}/nothing"  # no server listens there
-    done = start_together(tmp_path, url)[0]
+    done = start_together(tmp_path, url, searches=1)[0]  # no race: one process that cannot open it
     lines = done.stderr.strip().splitlines()
     assert done.returncode == 2 and len(lines) == 1, done.stderr
     assert lines[0].startswith("error: hydra.sweeper.storage = ") and "secret" not in lines[0]
