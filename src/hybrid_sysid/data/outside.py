@@ -138,6 +138,10 @@ class OutsideFit:
     def _fit(self, seat: np.ndarray, body: np.ndarray, starts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """fit's, for rows of one length (B, n) in float64."""
         n = seat.shape[1]
+        if self.fix != "none":  # the plain least squares only as the fallback of rows whose fixed fit failed
+            p_fix, se_fix, ok = self._fixed(seat, body, starts)
+            if ok.all():
+                return p_fix, se_fix
         rel_vel, rel_disp = relative_states(seat, body, self.dt, self.measurement)
         nfft, fir_fft = self.fir_fft(n)
         spectra = torch.fft.rfft(torch.from_numpy(np.stack([seat, rel_vel, rel_disp])), nfft)
@@ -145,7 +149,6 @@ class OutsideFit:
         out = fit_seat(*filtered, weights=self.mask(starts, n))
         p, se = out.p, out.se
         if self.fix != "none":
-            p_fix, se_fix, ok = self._fixed(seat, body, starts)
             return np.where(ok[:, None], p_fix, p), np.where(ok[:, None], se_fix, se)
         if self.target == "eiv":
             model = eiv_model(self.measurement)
