@@ -2,7 +2,7 @@
 
 The compiled dataset kernels are ``hybrid_sysid.physics.compiled`` and ``compiled_sensors`` (the sensor faults of
 ``physics.sensors``), imported only by ``hybrid_sysid.data``; ``compiled_hardening``, the hardening fix's
-recursion, is imported at that fix's first fit.
+recursion, and ``eiv.compiled_criterion``, a fault fix's criterion, are imported at such a fit's first call.
 """
 
 from hybrid_sysid.core.options import DEFAULT_MEASUREMENT, MEASUREMENTS, ROAD_CLASSES, STEPPED

@@ -25,10 +25,11 @@ variable projection: for given p it is the weighted least squares in its m real 
 spectrum with the weights 1 (DC, Nyquist) and 2 (the rest), which is the same sum. lambda = 0 is output error: V is
 then N times the time-domain sum of squared output errors, minimised over the free initial conditions too.
 
-Where the rest is (plain numpy, each module's docstring has its part): ``model``, the models of a recording
+Where the rest is (plain numpy but one, each module's docstring has its part): ``model``, the models of a recording
 (discrete, continuous) as transfer polynomials on the DFT's grid; ``criterion``, V and its derivatives;
 ``newton``, the damped Newton minimiser; ``fit``, ``fit_eiv`` with its standard errors and the MAP fit;
-``faults`` and ``fault_criterion``, a recording fault fitted with p; ``bound``, ``crb_relative_std``;
+``faults`` and ``fault_criterion``, a recording fault fitted with p, whose criterion
+``compiled_criterion`` computes with numba (imported at the first fault fit); ``bound``, ``crb_relative_std``;
 ``prior``, ``log_p_prior``; ``posterior``, the Bayes estimate under the simulator's exact prior
 (``bayes_fit``); ``matrices``, the small matrices' algebra.
 """

@@ -11,7 +11,16 @@ from hybrid_sysid.physics.eiv.model import re_basis
 from hybrid_sysid.physics.faults.fix import Fix
 from hybrid_sysid.physics.faults.skew import SKEW_HALF_WIDTH, abs2, advance, advance_kernel, unit_powers
 
-__all__ = ["SKEW_HALF_WIDTH", "abs2", "advance", "advance_kernel", "body_factor", "evaluate_fault", "unit_powers"]
+__all__ = [
+    "SKEW_HALF_WIDTH",
+    "abs2",
+    "advance",
+    "advance_kernel",
+    "body_factor",
+    "evaluate_fault",
+    "evaluate_fault_numpy",
+    "unit_powers",
+]
 
 
 def body_factor(fix: Fix, eta, n_samples):
@@ -21,6 +30,15 @@ def body_factor(fix: Fix, eta, n_samples):
 
 
 def evaluate_fault(theta, S, U, X, fix, grid, lam, n_samples, derivatives=True, XA=None):
+    """``evaluate_fault_numpy``'s V and derivatives from the compiled kernel (physics.eiv.compiled_criterion: a
+    call costs a few microseconds a window where numpy's costs about a millisecond whatever their number)."""
+    from hybrid_sysid.physics.eiv.compiled_criterion import evaluate  # numba at the first fault fit, not at start
+
+    factors = body_factor(fix, theta[:, 2], n_samples)
+    return evaluate(theta, S, U, X, factors, grid, lam, derivatives, XA)
+
+
+def evaluate_fault_numpy(theta, S, U, X, fix, grid, lam, n_samples, derivatives=True, XA=None):
     """``evaluate_criterion`` for theta = (log p1, log p2, eta), eta the fault's parameter: the residual
     A S - phi B U + eta X - I with W = |A|^2 + lambda psi |B|^2 (``body_factor``; X: the hardening's cubic term or
     None). V, its half gradient and the Gauss-Newton and exact Hessians in theta, the transient projected out."""
