@@ -43,8 +43,12 @@ def _cholesky_solve(t, b, out):
 @numba.njit(cache=True, error_model="numpy")
 def _kernel(p, eta, S, U, X, XA, factors, psis, polys, weight, cos, br, bi, lam, derivatives, V, g, gn, ex):
     """cos, br, bi: the grid's cos, basis.real and basis.imag transposed, (M, K): the loops over the transient's
-    basis run along the frequencies, contiguous."""
+    basis run along the frequencies, contiguous. X, XA (n, K) and the body factor's (3, n, K) may have length 1
+    along either axis, broadcast as numpy would: a constant factor is not spread over every window and frequency."""
     n, K = S.shape
+    fi, fk = int(factors.shape[1] > 1), int(factors.shape[2] > 1)
+    xi, xk = int(X.shape[0] > 1), int(X.shape[1] > 1)
+    ai, ak = int(XA.shape[0] > 1), int(XA.shape[1] > 1)
     M = br.shape[0]
     a0, a1, a2, b1, b2 = polys[0], polys[1], polys[2], polys[3], polys[4]
     e = np.empty(K, np.complex128)
@@ -64,9 +68,9 @@ def _kernel(p, eta, S, U, X, XA, factors, psis, polys, weight, cos, br, bi, lam,
         for k in range(K):
             A[k] = a0[k] + p1 * a1[k] + p2 * a2[k]
             B[k] = p1 * b1[k] + p2 * b2[k]
-            e[k] = A[k] * S[i, k] - factors[0, i, k] * (B[k] * U[i, k]) + et * X[i, k]
-            aw = A[k] + et * XA[i, k]
-            W[k] = aw.real**2 + aw.imag**2 + lam * psis[0, i, k] * (B[k].real ** 2 + B[k].imag ** 2)
+            e[k] = A[k] * S[i, k] - factors[0, i * fi, k * fk] * (B[k] * U[i, k]) + et * X[i * xi, k * xk]
+            aw = A[k] + et * XA[i * ai, k * ak]
+            W[k] = aw.real**2 + aw.imag**2 + lam * psis[0, i * fi, k * fk] * (B[k].real ** 2 + B[k].imag ** 2)
             w[k] = weight[k] / W[k]
         # the transient's normal matrix (Toeplitz: its first row) and right side
         for j in range(M):
@@ -94,20 +98,20 @@ def _kernel(p, eta, S, U, X, XA, factors, psis, polys, weight, cos, br, bi, lam,
             if not derivatives:
                 continue
             u, s_ = U[i, k], S[i, k]
-            phi, phi1, phi2 = factors[0, i, k], factors[1, i, k], factors[2, i, k]
-            psi, psi1, psi2 = psis[0, i, k], psis[1, i, k], psis[2, i, k]
+            phi, phi1, phi2 = factors[0, i * fi, k * fk], factors[1, i * fi, k * fk], factors[2, i * fi, k * fk]
+            psi, psi1, psi2 = psis[0, i * fi, k * fk], psis[1, i * fi, k * fk], psis[2, i * fi, k * fk]
             bu = B[k] * u
             u1, u2 = b1[k] * u, b2[k] * u
             de[0] = a1[k] * s_ - phi * u1
             de[1] = a2[k] * s_ - phi * u2
-            de[2] = -phi1 * bu + X[i, k]
+            de[2] = -phi1 * bu + X[i * xi, k * xk]
             d2e[0, 2] = -phi1 * u1
             d2e[1, 2] = -phi1 * u2
             d2e[2, 2] = -phi2 * bu
             qb = B[k].real ** 2 + B[k].imag ** 2
             qb0 = 2.0 * (B[k].conjugate() * b1[k]).real
             qb1 = 2.0 * (B[k].conjugate() * b2[k]).real
-            xa = XA[i, k]
+            xa = XA[i * ai, k * ak]
             aw = A[k] + et * xa
             dW[0] = (2.0 * (aw.conjugate() * a1[k]).real + lam * psi * qb0) / W[k]
             dW[1] = (2.0 * (aw.conjugate() * a2[k]).real + lam * psi * qb1) / W[k]
@@ -171,10 +175,11 @@ def evaluate(theta, S, U, X, body_factor, grid, lam, derivatives=True, XA=None):
     fix's ``body_factor`` (phi, phi', phi'', psi, psi', psi'') already evaluated at theta's eta."""
     n, K = S.shape
 
-    def full(values, dtype):
-        return np.ascontiguousarray(np.stack([np.broadcast_to(np.asarray(v, dtype=dtype), (n, K)) for v in values]))
+    def compact(values, dtype):  # (3, 1 or n, 1 or K): what the three broadcast to, no larger
+        values = [np.asarray(v, dtype=dtype).reshape((1,) * (2 - np.ndim(v)) + np.shape(v)) for v in values]
+        return np.ascontiguousarray(np.stack(np.broadcast_arrays(*values)))
 
-    zero = np.zeros((n, K), np.complex128)
+    zero = np.zeros((1, 1), np.complex128)
     theta = np.asarray(theta, dtype=np.float64)
     V = np.empty(n)
     g, gn, ex = np.empty((n, 3)), np.empty((n, 3, 3)), np.empty((n, 3, 3))
@@ -185,8 +190,8 @@ def evaluate(theta, S, U, X, body_factor, grid, lam, derivatives=True, XA=None):
         np.ascontiguousarray(U, dtype=np.complex128),
         zero if X is None else np.ascontiguousarray(X, dtype=np.complex128),
         zero if XA is None else np.ascontiguousarray(XA, dtype=np.complex128),
-        full(body_factor[:3], np.complex128),
-        full(body_factor[3:], np.float64),
+        compact(body_factor[:3], np.complex128),
+        compact(body_factor[3:], np.float64),
         np.ascontiguousarray(grid.polys, dtype=np.complex128),
         np.ascontiguousarray(grid.weight, dtype=np.float64),
         np.ascontiguousarray(grid.cos.T, dtype=np.float64),
