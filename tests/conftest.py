@@ -6,6 +6,12 @@ import sys
 # (helpers/started_early.py) a second BLAS thread waits for a busy core, and a product of 192 x 27 by 27 x 251
 # complex numbers then took 12.7 ms instead of 0.28 (benchmarks/README.md, "The default suite").
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+# torch too runs one thread, set before torch is first imported: the processes started early run beside the
+# tests here, so two threads a process would be four on two cores, and torch's threads spin at each operation's
+# end waiting for one that has no core. Beside two busy processes, test_model_overfit.py and
+# test_debug_overfit_fits_one_batch took 302 s of CPU on two threads against 17 s on one
+# (benchmarks/README.md, "The default suite"). A run sets its own count from trainer.threads either way.
+os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 import pytest  # noqa: E402
 from hydra import compose, initialize_config_dir  # noqa: E402

@@ -75,6 +75,7 @@ def test_a_run_puts_torchs_thread_count_back(make_cfg, tmp_path):
     count it had; the next run without the key then runs on that count, as in a new process."""
     import torch
 
+    torch.set_num_threads(2)  # not the one a pinned run takes (the suite runs on one); the autouse fixture restores
     before = torch.get_num_threads()
     pinned = train(make_cfg(*TINY, "trainer.max_steps=2", "trainer.threads=1"), tmp_path / "pinned")
     assert pinned["threads"] == 1 and torch.get_num_threads() == before
