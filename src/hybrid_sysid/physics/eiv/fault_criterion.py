@@ -30,8 +30,8 @@ def body_factor(fix: Fix, eta, n_samples):
 
 
 def evaluate_fault(theta, S, U, X, fix, grid, lam, n_samples, derivatives=True, XA=None):
-    """``evaluate_fault_numpy``'s V and derivatives from the compiled kernel (physics.eiv.compiled_criterion: a
-    call costs a few microseconds a window where numpy's costs about a millisecond whatever their number)."""
+    """``evaluate_fault_numpy``'s V and derivatives from the compiled kernel (physics.eiv.compiled_criterion: with
+    the gain fix, 0.13 ms a call on 4 windows against numpy's 0.55, 1.5 ms on 64 against 6.7)."""
     from hybrid_sysid.physics.eiv.compiled_criterion import evaluate  # numba at the first fault fit, not at start
 
     factors = body_factor(fix, theta[:, 2], n_samples)
