@@ -13,6 +13,7 @@ import pytest
 from helpers.estimator_run import predict
 from helpers.hostile import laughs
 from helpers.received import received
+from helpers.started_early import started_early
 from helpers.tree import snapshot
 
 
@@ -126,23 +127,30 @@ def test_a_device_as_the_input_is_one_line_without_reading_it(tiny_run, tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
-def test_non_ascii_names_under_an_ascii_locale_print_escaped(tiny_run, tmp_path):
-    """A recording named sitz_ä under LC_ALL=C without UTF-8 mode (once a UnicodeEncodeError traceback, exit 1):
-    the table prints it escaped, the output CSV keeps it as UTF-8."""
-    path = tmp_path / "drive.csv"
+@started_early
+def escaped_prediction(tmp, env, tiny_run):
+    """A recording named sitz_ä predicted under LC_ALL=C without UTF-8 mode: (the process, its output CSV)."""
+    path = tmp / "drive.csv"
     t = np.arange(2000) * 0.005
     rows = "".join(f"sitz_ä,{ti},{np.sin(9 * ti)},{np.cos(7 * ti)}\n" for ti in t)
     path.write_text("recording,time,seat_acc,body_acc\n" + rows, encoding="utf-8")
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONIOENCODING", "HYDRA_FULL_ERROR")}
+    env = {k: v for k, v in env.items() if k not in ("PYTHONIOENCODING", "HYDRA_FULL_ERROR")}
     env.update(LC_ALL="C", LANG="C", PYTHONUTF8="0")
-    out = tmp_path / "estimates.csv"
+    out = tmp / "estimates.csv"
     proc = subprocess.run(
         [sys.executable, "-m", "hybrid_sysid.cli.predict", f"run={tiny_run}", f"input={path}", f"output={out}"],
-        cwd=tmp_path,
+        cwd=tmp,
         env=env,
         capture_output=True,
         timeout=300,
     )
+    return proc, out
+
+
+def test_non_ascii_names_under_an_ascii_locale_print_escaped(escaped_prediction):
+    """Once a UnicodeEncodeError traceback, exit 1: the table prints the name escaped, the output CSV keeps it as
+    UTF-8."""
+    proc, out = escaped_prediction
     assert proc.returncode == 0 and b"Traceback" not in proc.stderr, proc.stderr[-2000:]
     assert b"sitz_\\xe4" in proc.stdout
     assert out.read_text(encoding="utf-8").splitlines()[1].startswith("sitz_ä,")
@@ -159,20 +167,27 @@ def test_a_report_counts_a_metrics_json_nested_deep_as_unreadable(tiny_run, tmp_
     assert "1 run, 1 failed or unreadable" in capsys.readouterr().err
 
 
-def test_a_run_and_its_report_in_a_non_ascii_directory_under_an_ascii_locale(tmp_path, tiny_cache):
-    """A run in lauf_ü under LC_ALL=C without UTF-8 mode (once a 40-line logging traceback): exit 0, no logging
-    error, the log file keeps the path's bytes as they were (UTF-8), and the report of it writes its summary."""
-    where = tmp_path / "lauf_ü"
+@started_early
+def report_in_non_ascii_directory(tmp, env, tiny_cache):
+    """A run in lauf_ü, then the report of it, under LC_ALL=C without UTF-8 mode: (their processes, lauf_ü)."""
+    where = tmp / "lauf_ü"
     where.mkdir()
-    env = {k: v for k, v in os.environ.items() if k not in ("PYTHONIOENCODING", "HYDRA_FULL_ERROR")}
+    env = {k: v for k, v in env.items() if k not in ("PYTHONIOENCODING", "HYDRA_FULL_ERROR")}
     env.update(LC_ALL="C", LANG="C", PYTHONUTF8="0", HYBRID_SYSID_CACHE=str(tiny_cache))
     # the run's directory under the working directory (outputs/runs/<time>), so no argument holds the name
     commands = [
         [sys.executable, "-m", "hybrid_sysid", "baseline=ls_window", "data=tiny"],
         [sys.executable, "-m", "hybrid_sysid.report", "outputs/runs"],
     ]
-    for command in commands:
-        proc = subprocess.run(command, cwd=where, env=env, capture_output=True, timeout=300)
+    procs = [subprocess.run(command, cwd=where, env=env, capture_output=True, timeout=300) for command in commands]
+    return procs, where
+
+
+def test_a_run_and_its_report_in_a_non_ascii_directory_under_an_ascii_locale(report_in_non_ascii_directory):
+    """Once a 40-line logging traceback: exit 0, no logging error, the log file keeps the path's bytes as they were
+    (UTF-8), and the report of the run writes its summary."""
+    procs, where = report_in_non_ascii_directory
+    for proc in procs:
         assert proc.returncode == 0, proc.stderr[-2000:]
         assert b"Logging error" not in proc.stderr and b"Traceback" not in proc.stderr, proc.stderr[-2000:]
     (run,) = (where / "outputs" / "runs").glob("*/metrics.json")
