@@ -208,15 +208,14 @@ def listening(port: int) -> bool:
     return False
 
 
-@pytest.mark.integration
-def test_a_rendezvous_with_a_node_never_started_ends_on_sigterm_with_its_record(tmp_path, tiny_cache):
-    """MASTER_ADDR and NODE_RANK given by hand for two nodes, and node 1 never started: rank 0 waits in torch's
-    rendezvous, C code that runs no Python handler. It once waited there 30 minutes, deaf to SIGTERM. The signal
-    is sent once rank 0's store listens, so it lands in that wait; the run must end as any interrupted run does."""
+@started_early
+def rendezvous_terminated(tmp, env, tiny_cache):
+    """Rank 0 of two nodes, node 1 never started, sent SIGTERM in torch's rendezvous: (its exit status, its
+    output, its run directory). Started early: the process imports torch and Lightning before it waits."""
     port = free_port()
-    env = {**os.environ, "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port), "NODE_RANK": "0"}
+    env = {**env, "MASTER_ADDR": "127.0.0.1", "MASTER_PORT": str(port), "NODE_RANK": "0"}
     args = ["data=tiny", "trainer=debug", "trainer.max_steps=2", "trainer.num_nodes=2"]
-    proc = launch(tmp_path, *args, f"hydra.run.dir={tmp_path / 'run'}", cache=tiny_cache, env=env)
+    proc = launch(tmp, *args, f"hydra.run.dir={tmp / 'run'}", cache=tiny_cache, env=env)
     try:
         started = time.monotonic()
         while not listening(port):
@@ -228,8 +227,17 @@ def test_a_rendezvous_with_a_node_never_started_ends_on_sigterm_with_its_record(
         out = proc.communicate(timeout=60)[0]  # without the watcher: the rendezvous's 30-minute timeout
     finally:
         proc.kill()
+    return proc.returncode, out, tmp / "run"
+
+
+@pytest.mark.integration
+def test_a_rendezvous_with_a_node_never_started_ends_on_sigterm_with_its_record(rendezvous_terminated):
+    """MASTER_ADDR and NODE_RANK given by hand for two nodes, and node 1 never started: rank 0 waits in torch's
+    rendezvous, C code that runs no Python handler. It once waited there 30 minutes, deaf to SIGTERM. The signal
+    is sent once rank 0's store listens, so it lands in that wait; the run must end as any interrupted run does."""
+    returncode, out, run = rendezvous_terminated
     errors = [line for line in out.splitlines() if line.startswith("error:")]
-    assert proc.returncode == 143 and len(errors) == 1 and "SIGTERM" in errors[0], out[-3000:]
+    assert returncode == 143 and len(errors) == 1 and "SIGTERM" in errors[0], out[-3000:]
     assert "Traceback" not in out
-    record = json.loads((tmp_path / "run" / "metrics.json").read_text())
+    record = json.loads((run / "metrics.json").read_text())
     assert record["status"] == "interrupted" and "SIGTERM" in record["error"]
