@@ -79,9 +79,10 @@ def test_a_first_wave_that_simulated_the_dataset_does_not_inflate_the_estimate()
 
 @pytest.mark.parametrize("workers", [1, 2, 3])
 def test_two_kinds_in_parallel_stay_within_30_percent_from_the_first_end(workers):
-    """Two objectives of different cost, seeds inner (Hydra's order), 1000 steps each: the second kind is timed by
-    its first job's steps from their tenth on; before, the estimate is a lower bound and the line says how many
-    jobs it did not time."""
+    """Two objectives of different cost, seeds inner (Hydra's order), 1000 steps each: until the second kind's
+    steps time it, it takes the first's time (a network one value away: time_left.borrowed), 25% short of its
+    own, and the estimate holds from the first end on, none of its jobs counted as not timed. The main job said
+    "at least 0:00" where 2:12 remained before."""
     kinds = ["objective=labelled"] * 4 + ["objective=hybrid"] * 4
     work = [60.0, 58.0, 63.0, 61.0, 72.0, 75.0, 70.0, 77.0]
     header, events = simulate(kinds, work, workers=workers, data=30.0, steps=[1000] * 8)
@@ -92,8 +93,8 @@ def test_two_kinds_in_parallel_stay_within_30_percent_from_the_first_end(workers
         else:
             assert close(seconds, truth, work[4:]), (now, seconds, truth)
     first = next(c for c in seen if c[0] == min(e["t"] for e in events if "end" in e))
-    assert first[3] == 4  # at the first end, the four hybrid jobs: none has a tenth of its steps done
-    assert seen[-1][3] == 0
+    assert first[3] == 0  # at the first end the four hybrid jobs, none a tenth of its steps done, are borrowed
+    assert abs(first[1] - first[2]) <= WITHIN * first[2]
 
 
 def test_kinds_not_timed_yet_are_named_as_a_guess():

@@ -18,7 +18,8 @@ wrong, and each has its answer here:
   its first twentieth (its first steps warm the libraries up) times its max_steps, plus the overhead, time it
   minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
   (``borrowed``) time it, or, with nothing shown either way, a kind one fault, sensor, car or road away (a sweep
-  over the fault alone said "at least 0:17" with about 50 minutes left). A kind with none of these counts at the
+  over the fault alone said "at least 0:17" with about 50 minutes left), or one value away from a kind whose jobs
+  train (the main job's objectives: "at least 0:00" with 2:12 left). A kind with none of these counts at the
   overhead alone: the estimate is then a lower bound, and the line says "at least" and how many jobs it did not
   time.
 - A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
@@ -110,12 +111,16 @@ def _parts(kind: str) -> dict[str, str]:
     return dict(part.partition("=")[::2] for part in kind.split(" ") if part)
 
 
-def borrowed(means: dict[str, float], wanted: set[str], works: dict[str, float]) -> dict[str, float]:
+def borrowed(
+    means: dict[str, float], wanted: set[str], works: dict[str, float], networks: frozenset = frozenset()
+) -> dict[str, float]:
     """Kinds of ``wanted`` timed by those of ``means`` that differ from them only in keys shown not to change a
     job's time: every two timed kinds that differ in that key alone did as much work (``works``, else ``means``:
     within SAME and SLACK). So once a baseline's fits under two faults took as long, a network under the second
     fault takes its time under the first. Work, not a job's time: the first jobs under a new fault also load its
-    dataset, once."""
+    dataset, once. Failing that, a kind one value away that picks the recordings (``DATA_KEYS``), or one value
+    away in any key from a kind of ``networks`` (its jobs train), where no two timed kinds showed that key to
+    matter."""
     if not wanted or len(means) > PAIRS:
         return {}
     parts = {k: _parts(k) for k in {*means, *wanted}}
@@ -137,10 +142,15 @@ def borrowed(means: dict[str, float], wanted: set[str], works: dict[str, float])
         # else a kind one value away in a key that picks the recordings, not the work (``DATA_KEYS``), where no two
         # timed kinds showed that key to matter: a sweep over the fault alone has no such pair until a second
         # fault ends, and its first fault's time is the best guess for the rest
+        # or a network's sibling in another key: the main job's three objectives train the same network the same
+        # steps, and the first objective's wave said "at least 0:00" with 2:12 left until the next reported steps
         near = near or [
             means[t]
             for t in timed
-            if (keys := differ(kind, t)) and len(keys) == 1 and keys <= DATA_KEYS and same.get(next(iter(keys))) is None
+            if (keys := differ(kind, t))
+            and len(keys) == 1
+            and (keys <= DATA_KEYS or t in networks)
+            and same.get(next(iter(keys))) is None
         ]
         if near:
             out[kind] = statistics.fmean(near)
@@ -218,7 +228,8 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         works.setdefault(kind(num), []).append(rate * of)
     means.update({k: statistics.fmean(v) + overhead for k, v in stepped.items()})
     wanted = {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)
-    means.update(borrowed(means, wanted, {k: statistics.fmean(v) for k, v in works.items()}))
+    networks = frozenset(kind(e["steps"]) for e in events if "steps" in e and e.get("of"))
+    means.update(borrowed(means, wanted, {k: statistics.fmean(v) for k, v in works.items()}, networks))
     if not jobs or not (means or partial):  # resumed jobs alone: a lower bound, not their times per job
         return None
     floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
