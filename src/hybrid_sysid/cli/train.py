@@ -22,8 +22,17 @@ from omegaconf import DictConfig
 from hybrid_sysid import config
 from hybrid_sysid.config import validate
 from hybrid_sysid.config.help import quick_help
+from hybrid_sysid.launch.choices import check_choices
 from hybrid_sysid.launch.console import tolerant_streams
-from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
+from hybrid_sysid.launch.first_composition import single_runs_checked_early
+from hybrid_sysid.launch.job import (
+    Preflight,
+    checks_complete,
+    draw_run_figures,
+    draws_figures,
+    run_job,
+    task_config,
+)
 from hybrid_sysid.launch.process import console_main
 from hybrid_sysid.runs.layout import SWEEP_CONFIG, check_outside_runs
 from hybrid_sysid.runs.resume import check_resume
@@ -123,6 +132,14 @@ def hydra_main(cfg: DictConfig) -> Any:
     return record
 
 
+def values_checked(cfg: DictConfig) -> None:
+    """A single run's values and group choices, on Hydra's first composition (launch.first_composition): a refusal
+    in one composition, not two. The run's preflight checks them again, with its directory and resume=."""
+    with checks_complete():
+        check_choices(cfg)
+        validate(task_config(cfg))
+
+
 def main() -> None:
     """Console script ``hybrid-sysid`` (exit statuses: hybrid_sysid.launch.process)."""
     tolerant_streams()
@@ -130,7 +147,8 @@ def main() -> None:
     if text is not None:
         print(text)
         return
-    console_main(hydra_main, sys.argv[1:])
+    with single_runs_checked_early(values_checked):
+        console_main(hydra_main, sys.argv[1:])
 
 
 if __name__ == "__main__":
