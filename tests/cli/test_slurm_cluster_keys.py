@@ -1,7 +1,8 @@
 """launcher=slurm's cluster keys: the account, the QOS, the array's throttle and the setup lines compose as
 overrides (and from local/launcher/slurm.yaml), and reach the batch script sbatch receives. sbatch here is a
-stand-in on PATH that keeps the script and answers as sbatch does, so no cluster is needed; the script's flags are
-checked against sbatch's own spelling (--account=, --qos=, --array=0-N%P), the setup lines before the job's srun."""
+stand-in on PATH that keeps the script and answers as sbatch does (srun beside it, which submitit looks for), so
+no cluster is needed; the script's flags are checked against sbatch's own spelling (--account=, --qos=,
+--array=0-N%P), the setup lines before the job's srun."""
 
 import os
 import stat
@@ -52,6 +53,9 @@ def test_the_cluster_keys_reach_the_batch_script(tmp_path, monkeypatch):
     sbatch = bin_dir / "sbatch"
     sbatch.write_text(f'#!/bin/sh\ncp "$1" {kept}\necho "Submitted batch job 4242"\n')
     sbatch.chmod(sbatch.stat().st_mode | stat.S_IXUSR)
+    srun = bin_dir / "srun"  # submitit takes a machine without srun for no cluster and refuses to submit; never run
+    srun.write_text("#!/bin/sh\nexit 1\n")
+    srun.chmod(srun.stat().st_mode | stat.S_IXUSR)
     monkeypatch.setenv("PATH", f"{bin_dir}{os.pathsep}{os.environ['PATH']}")
     monkeypatch.setattr(SlurmLauncher, "_wait", lambda self, jobs, *a: [JobReturn() for _ in jobs])
 
