@@ -386,3 +386,18 @@ def test_a_sweep_over_the_estimator_alone_still_says_what_it_did_not_time():
     header, events = simulate(kinds, [1.0, 1.1, 0.9, 300.0, 310.0, 290.0], workers=1)
     first = checks(header, events)[0]
     assert first[3] == 3 and first[1] < first[2]
+
+
+def test_two_baselines_as_fast_do_not_time_a_network_of_the_same_key():
+    """experiment=anchored_clean's order: two classical fits as fast (ls, eiv), then networks under the same key. The
+    first two showed the estimator not to change a baseline's time, which says nothing of a network's: the line
+    said "about 0:08" with 13:04 left. The networks stay not timed ("at least", no more than the truth) until
+    their steps time them."""
+    kinds = ["estimator=ls"] * 3 + ["estimator=eiv"] * 3 + ["estimator=anchored"] * 3
+    work = [1.0, 1.1, 0.9, 1.0, 1.2, 1.1, 220.0, 230.0, 225.0]
+    header, events = simulate(kinds, work, workers=2, steps=[0] * 6 + [1500] * 3)
+    eiv_ended = max(e["t"] for e in events if e.get("end") in (3, 4, 5))
+    upto = [e for e in events if e["t"] <= eiv_ended and "steps" not in e]
+    seconds, untimed = estimate(header, upto, eiv_ended)
+    truth = max(e["t"] for e in events) - eiv_ended
+    assert untimed == 3 and seconds <= truth, (seconds, truth, untimed)
