@@ -52,3 +52,12 @@ def test_a_sweep_is_not_checked_at_the_first_composition(tmp_path, compositions,
     assert code != 0 and "1 of 1 job failed" in str(code) + err
     assert len(compositions) >= 2, compositions
     assert (tmp_path / "sweep" / "multirun.yaml").is_file()
+
+
+def test_an_evaluation_of_no_run_is_refused_after_one_composition(tmp_path, compositions, cli_in_process):
+    from hybrid_sysid.cli.evaluate import main
+
+    code, _, err = cli_in_process(main, f"run={tmp_path / 'no_run'}", f"hydra.run.dir={tmp_path / 'ev'}", cwd=tmp_path)
+    assert code == 2 and "run =" in err and ".hydra/config.yaml" in err, err
+    assert len(compositions) == 1, compositions
+    assert not (tmp_path / "ev").exists()

@@ -29,7 +29,15 @@ from hybrid_sysid.config.versions import upgraded
 from hybrid_sysid.core.checks import ConfigError, Shown, bad
 from hybrid_sysid.core.options import EVAL_OVERRIDABLE
 from hybrid_sysid.core.overrides import parse_override
-from hybrid_sysid.launch.job import Preflight, checks_complete, draw_run_figures, draws_figures, run_job
+from hybrid_sysid.launch.first_composition import single_runs_checked_early
+from hybrid_sysid.launch.job import (
+    Preflight,
+    checks_complete,
+    draw_run_figures,
+    draws_figures,
+    run_job,
+    task_config,
+)
 from hybrid_sysid.launch.process import console_main, fail
 from hybrid_sysid.runs import locks
 from hybrid_sysid.runs.layout import check_outside_runs
@@ -136,15 +144,30 @@ class EvalPreflight(Preflight):
         super().on_multirun_start(config, **kwargs)
 
     def check(self, cfg: DictConfig, overrides: list[str]) -> None:
-        if OmegaConf.is_missing(cfg, "run"):
-            raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
-        RunDir(str(cfg.run)).ended_record("run")  # a run still training, or a damaged record: before any read
+        run_given(cfg)
         evaluated = evaluation_config(Path(str(cfg.run)), cfg, overrides)
         from hybrid_sysid.training.build import check_sizes, check_weights  # deferred
 
         check_sizes(evaluated, Path(str(cfg.run)), "run")  # before validate builds the network for real
         validate_saved(evaluated, Path(str(cfg.run)))
         check_weights(evaluated, Path(str(cfg.run)), "run")
+
+
+def run_given(cfg: DictConfig) -> None:
+    """run= is given and names a run that ended with its record (one still training, or a damaged record, is
+    refused before any read)."""
+    if OmegaConf.is_missing(cfg, "run"):
+        raise ConfigError("run", missing=True, allowed="the trained run's directory: hybrid-sysid-eval run=DIR")
+    RunDir(str(cfg.run)).ended_record("run")
+
+
+def run_checked(cfg: DictConfig) -> None:
+    """run= and the saved config it holds, on Hydra's first composition (launch.first_composition): a refusal in
+    one composition, not two. The preflight checks them again, with the network's size and weights."""
+    with checks_complete():
+        task = task_config(cfg)
+        run_given(task)
+        evaluation_config(Path(str(task.run)), task, list(cfg.hydra.overrides.task))
 
 
 def evaluate(composed: DictConfig, out_dir: Path, overrides: list[str], checked: bool) -> dict:
@@ -199,7 +222,8 @@ def hydra_main(composed: DictConfig) -> dict:
 def main() -> None:
     """Console script ``hybrid-sysid-eval`` (exit statuses: hybrid_sysid.launch.process)."""
     try:
-        console_main(hydra_main, sys.argv[1:])
+        with single_runs_checked_early(run_checked):
+            console_main(hydra_main, sys.argv[1:])
     finally:
         discard_unrecorded()
 
