@@ -41,13 +41,14 @@ def test_a_refused_value_is_refused_after_one_composition(tmp_path, compositions
     assert Hydra.get_mode is before  # put back: another command in this process composes as Hydra does
 
 
-def test_a_sweep_is_not_checked_at_the_first_composition(tmp_path, compositions, cli_in_process):
+@pytest.mark.parametrize("flag", ["-m", "--multi"])  # Hydra's parser takes a prefix of --multirun for it
+def test_a_sweep_is_not_checked_at_the_first_composition(tmp_path, compositions, cli_in_process, flag):
     """-m: the first composition is not checked (a swept value is not yet a value); Hydra composes again for the
     sweep, whose job refuses the value in its own record."""
     from hybrid_sysid.cli.train import main
 
     code, _, err = cli_in_process(
-        main, "-m", "trainer.max_steps=-1", f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path
+        main, flag, "trainer.max_steps=-1", f"hydra.sweep.dir={tmp_path / 'sweep'}", cwd=tmp_path
     )
     assert code != 0 and "1 of 1 job failed" in str(code) + err
     assert len(compositions) >= 2, compositions

@@ -23,8 +23,8 @@ from omegaconf import DictConfig
 @contextmanager
 def single_runs_checked_early(check: Callable[[DictConfig], None]) -> Iterator[None]:
     """Within: ``check`` (which exits the command on a refusal) runs on the config Hydra composes to read the mode,
-    when neither the command line (``-m``, ``--multirun``) nor the config asks for a sweep. Hydra is as it was
-    after, so another command in the same process (a test's) composes unchecked."""
+    when neither the command line (``-m``, ``--multirun``: sweep_asked) nor the config asks for a sweep. Hydra is
+    as it was after, so another command in the same process (a test's) composes unchecked."""
     try:
         from hydra._internal.hydra import Hydra  # private: the only code between the two compositions
         from hydra.types import RunMode
@@ -48,7 +48,7 @@ def single_runs_checked_early(check: Callable[[DictConfig], None]) -> Iterator[N
             mode = cfg.hydra.mode
         except Exception:  # noqa: BLE001 - Hydra's get_mode returns None alike, and the second composition says why
             return None
-        if mode != RunMode.MULTIRUN and not {"-m", "--multirun"} & set(sys.argv[1:]):
+        if mode != RunMode.MULTIRUN and not sweep_asked(sys.argv[1:]):
             check(cfg)
         return mode
 
@@ -57,3 +57,8 @@ def single_runs_checked_early(check: Callable[[DictConfig], None]) -> Iterator[N
         yield
     finally:
         Hydra.get_mode = original
+
+
+def sweep_asked(argv: list[str]) -> bool:
+    """-m, --multirun or a prefix of it, which Hydra's argument parser takes for the whole (``--multi``)."""
+    return any(a == "-m" or (len(a) > 2 and "--multirun".startswith(a)) for a in argv)
