@@ -19,6 +19,7 @@ from hydra import compose, initialize_config_dir  # noqa: E402
 pytest.register_assert_rewrite("helpers")  # a plugin below, imported here first
 from helpers.app_process import run_app  # noqa: E402
 from helpers.mounts import small_tmpfs  # noqa: E402
+from helpers.shared import built_once  # noqa: E402
 from helpers.started_early import started_early  # noqa: E402
 
 pytest_plugins = [
@@ -33,18 +34,20 @@ TINY_DATA = (["data=tiny"], ["data=tiny", "car=soft_seat"])
 @pytest.fixture(scope="session")
 def tiny_cache(tmp_path_factory):
     """One dataset cache for the whole test run, holding data=tiny (on the paper's car and car=soft_seat),
-    simulated here once. A subprocess of the app that reads it (HYBRID_SYSID_CACHE or data.cache_dir) starts
-    training at once: it neither simulates the data nor compiles the numba kernel (seconds a process). Tests of
-    the cache itself, and tests that check nothing was simulated, keep a cache of their own."""
+    simulated here once (by one worker under pytest -n). A subprocess of the app that reads it (HYBRID_SYSID_CACHE
+    or data.cache_dir) starts training at once: it neither simulates the data nor compiles the numba kernel
+    (seconds a process). Tests of the cache itself, and tests that check nothing was simulated, keep a cache of
+    their own."""
     from hybrid_sysid.config import CONF_DIR
     from hybrid_sysid.training.build import build_datamodule
 
-    cache = tmp_path_factory.getbasetemp() / "tiny_cache"
-    for overrides in TINY_DATA:
-        with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
-            cfg = compose(config_name="config", overrides=[*overrides, f"data.cache_dir={cache}"])
-        build_datamodule(cfg).prepare_data()  # simulates into the cache, then puts torch's thread count back
-    return cache
+    def simulate(cache):
+        for overrides in TINY_DATA:
+            with initialize_config_dir(config_dir=CONF_DIR, version_base="1.3"):
+                cfg = compose(config_name="config", overrides=[*overrides, f"data.cache_dir={cache}"])
+            build_datamodule(cfg).prepare_data()  # simulates into the cache, then puts torch's thread count back
+
+    return built_once(tmp_path_factory, "tiny_cache", simulate)  # once for all workers of pytest -n
 
 
 TINY_SWEEP = [

@@ -7,6 +7,8 @@ from omegaconf import OmegaConf
 
 from hybrid_sysid.physics import road_profiles, simulate
 
+from helpers.shared import built_once
+
 TINY = [
     "data=tiny",
     "trainer=debug",
@@ -21,9 +23,10 @@ C3, K3 = 615.0, 98935.0  # the paper's seat damper and spring (sec. 2.2)
 def tiny_run(tmp_path_factory, tiny_cache):
     """A FastCNN trained for 400 steps on data=tiny, its config saved as Hydra would. About 8% mean relative
     deviation on recordings simulated like its data, against 32% for a constant guess (200 steps: 18%, too close
-    to half of it): enough to tell right input from wrong. Trained once per test
-    run (its data from the shared cache, conftest.py's tiny_cache); a test that changes it works on a copy."""
-    return trained_run(tmp_path_factory.getbasetemp() / "tiny_estimator_run", [*TINY, f"data.cache_dir={tiny_cache}"])
+    to half of it): enough to tell right input from wrong. Trained once per test run, by one worker under
+    pytest -n (its data from the shared cache, conftest.py's tiny_cache); a test that changes it works on a copy."""
+    overrides = [*TINY, f"data.cache_dir={tiny_cache}"]
+    return built_once(tmp_path_factory, "tiny_estimator_run", lambda run_dir: trained_run(run_dir, overrides))
 
 
 def trained_run(run_dir, overrides):

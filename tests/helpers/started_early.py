@@ -14,7 +14,12 @@ the test asserts on. Only the functions that the selected tests read are started
 reader; a test that reads one through request.getfixturevalue (for one of its parameters) names it in a mark,
 ``pytest.param(..., marks=pytest.mark.started_early("name"))``. A test whose process has not ended yet waits for
 it, and an exception the function raises (a failed wait, a skip) is raised in the test. A test whose own processes
-need the cores alone takes the fixture no_process_started_early."""
+need the cores alone takes the fixture no_process_started_early.
+
+Under pytest-xdist (``pytest -n 2``) each worker is a process with a lane of its own, and each function runs in one
+worker only: the k-th, in the order of first readers, in worker k modulo the number of workers. It publishes its
+result (helpers/shared.py) and a test in another worker waits for it there. A worker's tests still wait for their
+own lane at their own priority; the other workers' lanes keep theirs."""
 
 import concurrent.futures
 import contextlib
@@ -22,9 +27,12 @@ import inspect
 import os
 import threading
 import time
+import traceback
 from pathlib import Path
 
 import pytest
+
+from helpers.shared import WORKER, WORKERS, publish, read_published, shared_root, worker_index
 
 _STARTED = {}  # fixture name -> the function that runs the process
 
@@ -110,8 +118,13 @@ class _Lane:
         self.changed = threading.Condition()
         self.busy = False  # a function runs
         self.alone = 0  # tests that need the cores alone, waiting or running: no function starts meanwhile
+        self.root = shared_root(tmp_path_factory) if WORKER else None  # where the workers publish results
 
-    def start(self, name):
+    def start(self, name, here=True):
+        """The future of ``name``'s function, started in this worker's lane; None where ``here`` is false: another
+        worker runs it and publishes its result."""
+        if name not in self.futures and not here:
+            self.futures[name] = None
         if name not in self.futures:
             fn = _STARTED[name]
             given = {"tmp": lambda: self.tmp_path_factory.mktemp(name), "env": lambda: dict(self.env)}
@@ -128,7 +141,15 @@ class _Lane:
             self.busy = True
         start = time.perf_counter()
         try:
-            return fn(**kwargs)
+            value = fn(**kwargs)
+            if self.root is not None:
+                publish(self.root, fn.__name__, ("value", value))
+            return value
+        except BaseException as exc:
+            if self.root is not None:
+                skipped = isinstance(exc, pytest.skip.Exception)
+                publish(self.root, fn.__name__, ("skip", exc.msg) if skipped else ("error", _text(exc)))
+            raise
         finally:
             self.seconds[fn.__name__] = (time.perf_counter() - start, 0.0)
             with self.changed:
@@ -150,6 +171,8 @@ class _Lane:
     def result(self, name):
         future, start = self.start(name), time.perf_counter()
         try:
+            if future is None:
+                return _unpacked(name, read_published(self.root, name))
             if future.done():
                 return future.result()
             with waited_for():
@@ -166,6 +189,20 @@ class _Lane:
             f"{len(rows)} processes started early: {ran:.1f} s on their thread; tests waited {waited:.1f} s for them",
             *(f"{r:6.2f}s ran, {w:6.2f}s waited for (queued or running)  {name}" for name, (r, w) in rows),
         ]
+
+
+def _text(exc) -> str:
+    return "".join(traceback.format_exception(type(exc), exc, exc.__traceback__))
+
+
+def _unpacked(name, outcome):
+    """What another worker's function returned, raised as a skip, or its error raised here."""
+    kind, value = outcome
+    if kind == "skip":
+        pytest.skip(value)
+    if kind == "error":
+        raise RuntimeError(f"{name}, started early in another worker, failed there:\n{value}")
+    return value
 
 
 @pytest.fixture
@@ -195,10 +232,13 @@ _LANE = pytest.StashKey()
 @pytest.fixture(scope="session", autouse=True)
 def _started_early(request, tmp_path_factory):
     lane = request.config.stash[_LANE] = _Lane(request, tmp_path_factory)
+    order = []  # under xdist every worker collects every test, in the same order: the same list in each
     for item in request.node.items:  # the test run's node: every selected test
         marked = [name for mark in item.iter_markers("started_early") for name in mark.args]
         for name in [*item.fixturenames, *marked]:
-            if name in _STARTED:
-                lane.start(name)
+            if name in _STARTED and name not in order:
+                order.append(name)
+                lane.start(name, here=(len(order) - 1) % WORKERS == worker_index())
     yield lane
-    lane.pool.shutdown(wait=True, cancel_futures=True)
+    # a worker that ran out of tests still runs what the others wait for; alone, what no test read is dropped
+    lane.pool.shutdown(wait=True, cancel_futures=WORKER is None)
