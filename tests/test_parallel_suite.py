@@ -89,9 +89,12 @@ def test_two_workers_build_once_and_run_each_process_once(tmp_path):
     (tmp_path / "test_readers.py").write_text(TESTS)
     log = tmp_path / "ran.log"
     env = {**os.environ, "PYTHONPATH": str(HELPERS), "RAN_LOG": str(log)}
-    # --dist each: every worker runs every test, so each reads what the other worker ran as well as its own
+    # --dist each: every worker runs every test, so each reads what the other worker ran as well as its own.
+    # --basetemp: a numbered directory beside this run's would make pytest delete the oldest of those, maybe a
+    # whole suite's (this test took 43 s instead of 4 s right after one)
+    args = ["-n", "2", "--dist", "each", "-p", "no:cacheprovider", "-q", "-rs", f"--basetemp={tmp_path / 'tmp'}"]
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "-n", "2", "--dist", "each", "-p", "no:cacheprovider", "-q", "-rs"],
+        [sys.executable, "-m", "pytest", *args],
         cwd=tmp_path,
         env=env,
         capture_output=True,
