@@ -37,6 +37,9 @@ def test_a_sweep_prints_a_line_per_job_and_its_table(tiny_sweep):
     assert len(lines) < 40, said
     repeated = [ln for ln in set(lines) if re.search(r"\w", ln) and lines.count(ln) > 1]
     assert not repeated, repeated  # no line said twice (a block's rule of dashes aside)
+    # each network's end says it trained, so that a re-run of the sweep can time others by it (launch.time_left)
+    ends = [json.loads(ln) for ln in (sweep_dir / ".progress").read_text().splitlines()[1:] if '"end"' in ln]
+    assert sorted(e["end"] for e in ends if e.get("trained") is True) == [0, 1, 2, 3], ends
 
 
 def test_a_sweeps_table_fits_100_columns_and_holds_every_cell_of_summary_md(tiny_sweep):

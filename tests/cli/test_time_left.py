@@ -401,3 +401,50 @@ def test_two_baselines_as_fast_do_not_time_a_network_of_the_same_key():
     seconds, untimed = estimate(header, upto, eiv_ended)
     truth = max(e["t"] for e in events) - eiv_ended
     assert untimed == 3 and seconds <= truth, (seconds, truth, untimed)
+
+
+def test_a_faults_slower_fixed_fit_does_not_untime_the_networks_under_the_next_fault():
+    """The anchored sweep's case: under the second fault the classical fit takes three times as long (its fixed fit
+    fits the fault too), which showed the fault to matter for every kind, and the third fault's networks counted
+    as not timed ("at least 12:01" with about 4 h 30 min left). Networks are judged by networks: two faults'
+    networks trained as long, so the third fault's are timed by them once its classical fits end."""
+    kinds, work, steps = [], [], []
+    for fault, fit in (("clean", 1.0), ("gain", 3.0), ("skewed", 1.0)):
+        for estimator, seconds, n in (("ls_fix", fit, 0), ("cnn", 100.0, 1000)):
+            for seed in range(2):
+                kinds.append(f"fault={fault} estimator={estimator}")
+                work.append(seconds * (1 + 0.05 * seed))
+                steps.append(n)
+    header, events = simulate(kinds, work, workers=1, steps=steps)
+    fits_ended = max(e["t"] for e in events if e.get("end") in (8, 9))
+    upto = [e for e in events if e["t"] <= fits_ended]
+    seconds, untimed = estimate(header, upto, fits_ended)
+    truth = max(e["t"] for e in events) - fits_ended
+    assert untimed == 0 and close(seconds, truth, work[2:4]), (seconds, truth, untimed)
+    # before, the third fault's fits are not timed (two faults' fits disagree), and its networks are
+    fits_started = min(e["t"] for e in events if e.get("start") == 8)
+    upto = [e for e in events if e["t"] <= fits_started]
+    assert estimate(header, upto, fits_started)[1] == 2
+
+
+def test_a_rerun_sweeps_completed_networks_time_the_next_faults_networks():
+    """A re-run sweep: the first fault's fit and network completed before and end at once, the network's record
+    saying it trained (no step reports in this run). The second fault's fit runs here and takes three times its
+    record, so the fault changes a fit's time; nothing says it changes a network's, which the completed network
+    now times (it counted as not timed, as if it were a fit)."""
+    kinds = ["fault=clean estimator=ls_fix", "fault=clean estimator=cnn"]
+    kinds += ["fault=gain estimator=ls_fix", "fault=gain estimator=cnn"]
+    header = {"jobs": 4, "start": 0.0, "at_once": 1, "kinds": kinds}
+    done = {"seconds": 0.1, "cold": False, "pid": 1, "ok": True}
+    events = [
+        {"start": 0, "t": 0.0, "pid": 1},
+        {**done, "end": 0, "t": 0.1, "work": 1.0, "trained": False},
+        {"start": 1, "t": 0.1, "pid": 1},
+        {**done, "end": 1, "t": 0.2, "work": 100.0, "trained": True},
+        {"start": 2, "t": 0.2, "pid": 1},
+        {"end": 2, "t": 5.2, "seconds": 5.0, "cold": False, "pid": 1, "work": 3.0, "ok": True, "trained": False},
+    ]
+    seconds, untimed = estimate(header, events, 5.2)
+    assert untimed == 0 and seconds == pytest.approx(100.0, rel=0.1), (seconds, untimed)
+    unflagged = [{k: v for k, v in e.items() if k != "trained"} for e in events]
+    assert estimate(header, unflagged, 5.2)[1] == 1  # the old progress lines: the network was taken for a fit

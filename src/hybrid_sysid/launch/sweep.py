@@ -118,7 +118,7 @@ class SweepSummary(Callback):
             record = record_of(job_return)
             ok = isinstance(record, dict) and record.get("status", "completed") == "completed"
             entry = {"t": now, "seconds": seconds, "cold": getattr(self, "_cold", True), "pid": os.getpid()}
-            entry.update(work=work_seconds(record), ok=ok)
+            entry.update(work=work_seconds(record), ok=ok, trained=bool(ok and record.get("steps")))
             header, done = count_done(Path(config.hydra.sweep.dir), config.hydra.job.num, entry)
             line = job_line(header, done, config.hydra.job.num, job_return, seconds, now)
         except Exception as exc:  # noqa: BLE001 - e.g. no .progress (a sweep started elsewhere): the job is done

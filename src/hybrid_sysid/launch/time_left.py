@@ -17,11 +17,11 @@ wrong, and each has its answer here:
 - A kind none of whose jobs ended yet. Its running job reports its steps (core.steps): the seconds per step since
   its first twentieth (its first steps warm the libraries up) times its max_steps, plus the overhead, time it
   minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
-  (``borrowed``) time it, or, with nothing shown either way, a kind one fault, sensor, car or road away (a sweep
-  over the fault alone said "at least 0:17" with about 50 minutes left), or one value away from a kind whose jobs
-  train (the main job's objectives: "at least 0:00" with 2:12 left). A kind with none of these counts at the
-  overhead alone: the estimate is then a lower bound, and the line says "at least" and how many jobs it did not
-  time.
+  (``borrowed``; for a fault, sensor, car or road, networks shown by networks and fits by fits) time it, or, with
+  nothing shown either way, a kind one fault, sensor, car or road away (a sweep over the fault alone said "at
+  least 0:17" with about 50 minutes left), or one value away from a kind whose jobs train (the main job's
+  objectives: "at least 0:00" with 2:12 left). A kind with none of these counts at the overhead alone: the
+  estimate is then a lower bound, and the line says "at least" and how many jobs it did not time.
 - A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
   its time and recorded work are those of the steps left. It times nothing, as a re-run's completed job.
 """
@@ -120,7 +120,8 @@ def borrowed(
     fault takes its time under the first. Work, not a job's time: the first jobs under a new fault also load its
     dataset, once. Failing that, a kind one value away that picks the recordings (``DATA_KEYS``), or one value
     away in any key from a kind of ``networks`` (its jobs train), where no two timed kinds showed that key to
-    matter."""
+    matter. A key that picks the recordings is judged for networks by pairs of networks and for the rest by pairs of
+    the rest: a fault's fixed fit may take longer than the plain fit, while a network trains its steps either way."""
     if not wanted or len(means) > PAIRS:
         return {}
     parts = {k: _parts(k) for k in {*means, *wanted}}
@@ -128,14 +129,24 @@ def borrowed(
     def differ(a: str, b: str) -> set[str] | None:
         return {k for k in parts[a] if parts[a][k] != parts[b][k]} if parts[a].keys() == parts[b].keys() else None
 
-    same: dict[str, bool] = {}
+    same: dict = {}  # a key -> as much work; a key that picks the recordings: (key, networks or not) -> the same
     timed = sorted(means)
     for i, a in enumerate(timed):
         for b in timed[i + 1 :]:
             keys = differ(a, b)
             if keys is not None and len(keys) == 1:
                 low, high = sorted((works.get(a, means[a]), works.get(b, means[b])))
-                same[next(iter(keys))] = same.get(next(iter(keys)), True) and high <= SAME * low + SLACK
+                key = next(iter(keys))
+                if key in DATA_KEYS:
+                    if (a in networks) != (b in networks):
+                        continue
+                    key = (key, a in networks)
+                same[key] = same.get(key, True) and high <= SAME * low + SLACK
+
+    def shown(key: str, t: str) -> bool | None:
+        """Whether the timed pairs showed ``key`` not to change the work of a job like ``t`` (None: no pair)."""
+        return same.get((key, t in networks) if key in DATA_KEYS else key)
+
     out = {}
     for kind in wanted:
         # a baseline's time lends itself across a key that picks recordings alone: two baselines as fast do not show
@@ -143,7 +154,7 @@ def borrowed(
         near = [
             means[t]
             for t in timed
-            if (keys := differ(kind, t)) and all(same.get(k) for k in keys) and (keys <= DATA_KEYS or t in networks)
+            if (keys := differ(kind, t)) and all(shown(k, t) for k in keys) and (keys <= DATA_KEYS or t in networks)
         ]
         # else a kind one value away in a key that picks the recordings, not the work (``DATA_KEYS``), where no two
         # timed kinds showed that key to matter: a sweep over the fault alone has no such pair until a second
@@ -156,7 +167,7 @@ def borrowed(
             if (keys := differ(kind, t))
             and len(keys) == 1
             and (keys <= DATA_KEYS or t in networks)
-            and same.get(next(iter(keys))) is None
+            and shown(next(iter(keys)), t) is None
         ]
         if near:
             out[kind] = statistics.fmean(near)
@@ -234,7 +245,10 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         works.setdefault(kind(num), []).append(rate * of)
     means.update({k: statistics.fmean(v) + overhead for k, v in stepped.items()})
     wanted = {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)
-    networks = frozenset(kind(e["steps"]) for e in events if "steps" in e and e.get("of"))
+    # the kinds whose jobs train: they report steps, or ended with a record of steps (a re-run's completed networks)
+    trained = {e["steps"] for e in events if "steps" in e and e.get("of")}
+    trained |= {num for num, e in ends.items() if e.get("trained")}
+    networks = frozenset(map(kind, trained))
     means.update(borrowed(means, wanted, {k: statistics.fmean(v) for k, v in works.items()}, networks))
     if not jobs or not (means or partial):  # resumed jobs alone: a lower bound, not their times per job
         return None
