@@ -36,6 +36,8 @@ COMMANDS = [
     ("hybrid-sysid --help", "hybrid-sysid", ["--help"]),
     ("hybrid-sysid trainer.max_steps=-1", "hybrid-sysid", ["trainer.max_steps=-1"]),
     ("hybrid-sysid objective=nonexistent", "hybrid-sysid", ["objective=nonexistent"]),
+    ("hybrid-sysid model.net.depth=3 (no such key)", "hybrid-sysid", ["model.net.depth=3"]),
+    ("hybrid-sysid trainer.max_steps=abc", "hybrid-sysid", ["trainer.max_steps=abc"]),
     ("hybrid-sysid model.net.blend=3", "hybrid-sysid", ["estimator=anchored_cross_segment", "model.net.blend=3"]),
     ("hybrid-sysid objective.target=xx", "hybrid-sysid", ["objective=cross_segment", "objective.target=xx"]),
     ("hybrid-sysid data.window=8", "hybrid-sysid", ["data.window=8"]),

@@ -62,3 +62,36 @@ def test_an_evaluation_of_no_run_is_refused_after_one_composition(tmp_path, comp
     assert code == 2 and "run =" in err and ".hydra/config.yaml" in err, err
     assert len(compositions) == 1, compositions
     assert not (tmp_path / "ev").exists()
+
+
+@pytest.mark.parametrize(
+    "args",
+    [["model.net.depth=3"], ["trainer.max_steps=abc"], ["objective=cross_segment", "objective.target.x=1"]],
+)
+def test_a_config_that_does_not_compose_is_refused_after_one_composition(
+    tmp_path, compositions, cli_in_process, monkeypatch, args
+):
+    """An unknown key or a value of the wrong type fails the first composition as it fails the run's own: its line
+    comes from the first, and says what Hydra's second composition made the command say (the reference: the same
+    command with the early end turned off)."""
+    from hybrid_sysid.cli.train import main
+    from hybrid_sysid.launch import first_composition
+
+    code, _, err = cli_in_process(main, *args, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert len(compositions) == 1, compositions
+    monkeypatch.setattr(first_composition, "fails_alike", lambda exc, overrides: False)
+    compositions.clear()
+    code_after_two, _, reference = cli_in_process(main, *args, f"hydra.run.dir={tmp_path / 'run'}", cwd=tmp_path)
+    assert (code_after_two, reference) == (code, err) and len(compositions) == 2, (reference, compositions)
+    assert not (tmp_path / "run").exists()
+
+
+def test_a_value_list_without_m_is_left_to_the_runs_composition(tmp_path, compositions, cli_in_process):
+    """seed=0,1 without -m: the first composition (for a sweep) takes the list, the run's refuses it before the unknown
+    key; so the command says what Hydra says of the list, after two compositions."""
+    from hybrid_sysid.cli.train import main
+
+    code, _, err = cli_in_process(main, "seed=0,1", "model.net.depth=3", cwd=tmp_path)
+    assert code == 2 and "Ambiguous value for argument 'seed=0,1'" in err, err
+    assert len(compositions) == 2, compositions

@@ -8,7 +8,9 @@ start"). Hydra has no public hook between the two, so ``get_mode`` is wrapped:
 a library's private internals, for that share of the time a user waits for a refusal. The wrapper composes as
 Hydra's own does and runs the cheap value checks on it when the command is a single run; the preflight of the run
 (hybrid_sysid.launch.job.Preflight) checks everything again on the second composition, so a valid config pays
-nothing but those checks twice (milliseconds), and a Hydra without ``get_mode`` is left as it is.
+nothing but those checks twice (milliseconds), and a Hydra without ``get_mode`` is left as it is. A config that does
+not compose at all (an unknown key, a value of the wrong type) fails the first composition as it would fail the
+second, so its error ends the command there: 1.01 -> 0.85 s of CPU for an unknown key on the AMD EPYC.
 """
 
 from __future__ import annotations
@@ -46,7 +48,9 @@ def single_runs_checked_early(check: Callable[[DictConfig], None]) -> Iterator[N
                 validate_sweep_overrides=False,
             )
             mode = cfg.hydra.mode
-        except Exception:  # noqa: BLE001 - Hydra's get_mode returns None alike, and the second composition says why
+        except Exception as exc:  # noqa: BLE001 - Hydra's get_mode returns None alike, and the second composition says why
+            if fails_alike(exc, overrides):
+                raise  # the second would fail alike: its one line (launch.process) without composing again
             return None
         if mode != RunMode.MULTIRUN and not sweep_asked(sys.argv[1:]):
             check(cfg)
@@ -62,3 +66,19 @@ def single_runs_checked_early(check: Callable[[DictConfig], None]) -> Iterator[N
 def sweep_asked(argv: list[str]) -> bool:
     """-m, --multirun or a prefix of it, which Hydra's argument parser takes for the whole (``--multi``)."""
     return any(a == "-m" or (len(a) > 2 and "--multirun".startswith(a)) for a in argv)
+
+
+def fails_alike(exc: Exception, overrides: list[str]) -> bool:
+    """Whether the run's own composition would fail as the first one did with ``exc``: a composition's error
+    (config.composition) of a command with no sweep (by -m or a value list), since the first composes for a sweep
+    without checking sweep values, and a single run's composition refuses a value list before anything else."""
+    from hydra.core.override_parser.overrides_parser import OverridesParser
+
+    from hybrid_sysid.config.composition import composition_error
+
+    if sweep_asked(sys.argv[1:]) or composition_error(exc) is None:
+        return False
+    try:
+        return not any(o.is_sweep_override() for o in OverridesParser.create().parse_overrides(overrides))
+    except Exception:  # noqa: BLE001 - an override that does not parse fails alike in both compositions
+        return True
