@@ -17,11 +17,12 @@ wrong, and each has its answer here:
 - A kind none of whose jobs ended yet. Its running job reports its steps (core.steps): the seconds per step since
   its first twentieth (its first steps warm the libraries up) times its max_steps, plus the overhead, time it
   minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
-  (``borrowed``; for a fault, sensor, car or road, networks shown by networks and fits by fits) time it, or, with
-  nothing shown either way, a kind one fault, sensor, car or road away (a sweep over the fault alone said "at
-  least 0:17" with about 50 minutes left), or one value away from a kind whose jobs train (the main job's
-  objectives: "at least 0:00" with 2:12 left). A kind with none of these counts at the overhead alone: the
-  estimate is then a lower bound, and the line says "at least" and how many jobs it did not time.
+  (``borrowed``: by the pairs of its own other values, else, for a fault, sensor, car or road, networks by networks
+  and fits by fits; a kind's work the median of its jobs') time it, or, with nothing shown either way, a kind
+  one fault, sensor, car or road away (a sweep over the fault alone said "at least 0:17" with about 50 minutes
+  left), or one value away from a kind whose jobs train (the main job's objectives: "at least 0:00" with 2:12
+  left). A kind with none of these counts at the overhead alone: the estimate is then a lower bound, and the line
+  says "at least" and how many jobs it did not time.
 - A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
   its time and recorded work are those of the steps left. It times nothing, as a re-run's completed job.
 """
@@ -130,21 +131,31 @@ def borrowed(
         return {k for k in parts[a] if parts[a][k] != parts[b][k]} if parts[a].keys() == parts[b].keys() else None
 
     same: dict = {}  # a key -> as much work; a key that picks the recordings: (key, networks or not) -> the same
+    own: dict = {}  # (a key, the other keys' values) -> as much work, for the pairs that share those values
     timed = sorted(means)
+
+    def rest(kind: str, key: str) -> frozenset:
+        return frozenset((k, v) for k, v in parts[kind].items() if k != key)
+
     for i, a in enumerate(timed):
         for b in timed[i + 1 :]:
             keys = differ(a, b)
             if keys is not None and len(keys) == 1:
                 low, high = sorted((works.get(a, means[a]), works.get(b, means[b])))
-                key = next(iter(keys))
+                key, alike = next(iter(keys)), high <= SAME * low + SLACK
+                own[key, rest(a, key)] = own.get((key, rest(a, key)), True) and alike
                 if key in DATA_KEYS:
                     if (a in networks) != (b in networks):
                         continue
                     key = (key, a in networks)
-                same[key] = same.get(key, True) and high <= SAME * low + SLACK
+                same[key] = same.get(key, True) and alike
 
     def shown(key: str, t: str) -> bool | None:
-        """Whether the timed pairs showed ``key`` not to change the work of a job like ``t`` (None: no pair)."""
+        """Whether the timed pairs showed ``key`` not to change the work of a job like ``t`` (None: no pair): the
+        pairs of its own other values where there are any (the fault changes a fixed fit's time, not the plain
+        fit's), else, for a key that picks the recordings, those of networks or of fits, as ``t`` is."""
+        if (key, rest(t, key)) in own:
+            return own[key, rest(t, key)]
         return same.get((key, t in networks) if key in DATA_KEYS else key)
 
     out = {}
@@ -249,7 +260,8 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     trained = {e["steps"] for e in events if "steps" in e and e.get("of")}
     trained |= {num for num, e in ends.items() if e.get("trained")}
     networks = frozenset(map(kind, trained))
-    means.update(borrowed(means, wanted, {k: statistics.fmean(v) for k, v in works.items()}, networks))
+    # a kind's work by its median: one job slowed by other work on the machine does not make its kind differ
+    means.update(borrowed(means, wanted, {k: statistics.median(v) for k, v in works.items()}, networks))
     if not jobs or not (means or partial):  # resumed jobs alone: a lower bound, not their times per job
         return None
     floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
