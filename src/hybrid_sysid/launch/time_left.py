@@ -121,8 +121,9 @@ def borrowed(
     fault takes its time under the first. Work, not a job's time: the first jobs under a new fault also load its
     dataset, once. Failing that, a kind one value away that picks the recordings (``DATA_KEYS``), or one value
     away in any key from a kind of ``networks`` (its jobs train), where no two timed kinds showed that key to
-    matter. A key that picks the recordings is judged for networks by pairs of networks and for the rest by pairs of
-    the rest: a fault's fixed fit may take longer than the plain fit, while a network trains its steps either way."""
+    matter. A key is judged by the pairs that share a kind's other values where there are any (a fault's fixed fit
+    may take longer than under another fault, the plain fit not), else, for a key that picks the recordings, by
+    pairs of networks for networks and of the rest for the rest (a network trains its steps either way)."""
     if not wanted or len(means) > PAIRS:
         return {}
     parts = {k: _parts(k) for k in {*means, *wanted}}
