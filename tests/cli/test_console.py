@@ -3,6 +3,7 @@ bar in a log file, Lightning's messages once and in the run's log file, each com
 command of a missing extra for both kinds of install."""
 
 import json
+import os
 import re
 import sys
 
@@ -40,6 +41,8 @@ def test_a_sweep_prints_a_line_per_job_and_its_table(tiny_sweep):
     # each network's end says it trained, so that a re-run of the sweep can time others by it (launch.time_left)
     ends = [json.loads(ln) for ln in (sweep_dir / ".progress").read_text().splitlines()[1:] if '"end"' in ln]
     assert sorted(e["end"] for e in ends if e.get("trained") is True) == [0, 1, 2, 3], ends
+    # and the CPU time of its fit, by which kinds are compared: a process spends at most its cores x its wall time
+    assert all(0 < e["cpu"] <= os.cpu_count() * e["work"] + 0.02 for e in ends), ends
 
 
 def test_a_sweeps_table_fits_100_columns_and_holds_every_cell_of_summary_md(tiny_sweep):

@@ -465,3 +465,26 @@ def test_one_job_slowed_by_other_work_does_not_make_its_fault_differ():
         events.append({"end": num, "t": t, "seconds": work + 2.0, "cold": False, "pid": 1, "work": work, "ok": True})
     seconds, untimed = estimate(header, events, t)
     assert untimed == 0 and seconds > 3 * 140.0, (seconds, untimed)
+
+
+def test_kinds_compared_by_their_cpu_time_where_load_moved_their_wall_time():
+    """Skewed's networks trained 183 s beside idle cores against clean's 352 s beside benchmarks: their wall times
+    marked the fault as changing a network's time, and the third fault's counted as not timed. Their CPU times
+    (the records' fit_cpu_seconds) were alike, so they now time it; CPU times as far apart as the wall times still
+    time nothing."""
+    kinds = [f"fault={f} estimator=cnn" for f in ("clean", "skewed", "lowpass") for _ in range(2)]
+    header = {"jobs": 6, "start": 0.0, "at_once": 1, "kinds": kinds}
+
+    def sweep(cpus):
+        events, t = [], 0.0
+        for num, (work, cpu) in enumerate(zip([352.0, 350.0, 183.0, 180.0], cpus)):
+            events.append({"start": num, "t": t, "pid": 1})
+            t += work + 2.0
+            entry = {"t": t, "seconds": work + 2.0, "cold": False, "pid": 1, "work": work, "cpu": cpu, "ok": True}
+            events.append({**entry, "end": num})
+        return estimate(header, events, t)
+
+    seconds, untimed = sweep([175.0, 174.0, 170.0, 172.0])
+    assert untimed == 0 and seconds > 2 * 180.0, (seconds, untimed)
+    assert sweep([352.0, 350.0, 183.0, 180.0])[1] == 2  # the CPU, as the wall, says the fault matters
+    assert sweep([None] * 4)[1] == 2  # records without it: their wall times, as before

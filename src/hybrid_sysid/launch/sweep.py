@@ -39,7 +39,7 @@ from hybrid_sysid.launch.progress import (
     start_line,
 )
 from hybrid_sysid.launch.state import PROCESS
-from hybrid_sysid.launch.time_left import work_seconds
+from hybrid_sysid.launch.time_left import work_cpu, work_seconds
 from hybrid_sysid.runs.sweepdir import SweepDir
 from hybrid_sysid.training.tracking.mlflow_store import log_sweep
 
@@ -118,7 +118,8 @@ class SweepSummary(Callback):
             record = record_of(job_return)
             ok = isinstance(record, dict) and record.get("status", "completed") == "completed"
             entry = {"t": now, "seconds": seconds, "cold": getattr(self, "_cold", True), "pid": os.getpid()}
-            entry.update(work=work_seconds(record), ok=ok, trained=bool(ok and record.get("steps")))
+            entry.update(work=work_seconds(record), cpu=work_cpu(record), ok=ok)
+            entry.update(trained=bool(ok and record.get("steps")))
             header, done = count_done(Path(config.hydra.sweep.dir), config.hydra.job.num, entry)
             line = job_line(header, done, config.hydra.job.num, job_return, seconds, now)
         except Exception as exc:  # noqa: BLE001 - e.g. no .progress (a sweep started elsewhere): the job is done

@@ -16,13 +16,13 @@ wrong, and each has its answer here:
   (completed before) takes the work their records give.
 - A kind none of whose jobs ended yet. Its running job reports its steps (core.steps): the seconds per step since
   its first twentieth (its first steps warm the libraries up) times its max_steps, plus the overhead, time it
-  minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's time
-  (``borrowed``: by the pairs of its own other values, else, for a fault, sensor, car or road, networks by networks
-  and fits by fits; a kind's work the median of its jobs') time it, or, with nothing shown either way, a kind
-  one fault, sensor, car or road away (a sweep over the fault alone said "at least 0:17" with about 50 minutes
-  left), or one value away from a kind whose jobs train (the main job's objectives: "at least 0:00" with 2:12
-  left). A kind with none of these counts at the overhead alone: the estimate is then a lower bound, and the line
-  says "at least" and how many jobs it did not time.
+  minutes before it ends. Else the kinds that differ from it only in values shown not to change a job's work
+  (launch.kinds_alike: by the pairs of its own other values, else, for a fault, sensor, car or road, networks by
+  networks and fits by fits; a kind's work the median of its jobs', in CPU seconds) time it, or, with nothing
+  shown either way, a kind one fault, sensor, car or road away (a sweep over the fault alone said "at least 0:17"
+  with about 50 minutes left), or one value away from a kind whose jobs train (the main job's objectives: "at
+  least 0:00" with 2:12 left). A kind with none of these counts at the overhead alone: the estimate is then a
+  lower bound, and the line says "at least" and how many jobs it did not time.
 - A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
   its time and recorded work are those of the steps left. It times nothing, as a re-run's completed job.
 """
@@ -31,6 +31,8 @@ from __future__ import annotations
 
 import heapq
 import statistics
+
+from hybrid_sysid.launch.kinds_alike import borrowed
 
 OK = "completed"
 
@@ -45,6 +47,14 @@ def work_seconds(record) -> float | None:
     if not record.get("steps") and record.get("train_seconds") is not None:
         return float(record["train_seconds"])
     return None
+
+
+def work_cpu(record) -> float | None:
+    """The CPU seconds of that work (fit_cpu_seconds), which other load on the machine hardly moves; None where the
+    record has none (a plugin's baseline, a run recorded before the field)."""
+    if not isinstance(record, dict) or record.get("status", OK) != OK or record.get("fit_cpu_seconds") is None:
+        return None
+    return float(record["fit_cpu_seconds"])
 
 
 def _cycles(events: list[dict]) -> dict:
@@ -100,92 +110,6 @@ def concurrency(events: list[dict]) -> int:
     return most
 
 
-SAME = 1.5  # two kinds' work within this factor...
-SLACK = 1.0  # ...and this many seconds: the one swept value they differ in does not change a job's time
-PAIRS = 200  # timed kinds at most whose pairs are compared (a sweep of hundreds of kinds: no borrowing)
-# swept keys that choose which recordings a job reads (a fault, a sensor, a car, a road class), not how many or
-# what is fitted to them: taken not to change a job's time until two timed kinds show otherwise
-DATA_KEYS = frozenset({"fault", "sensor", "car", "road"})
-
-
-def _parts(kind: str) -> dict[str, str]:
-    return dict(part.partition("=")[::2] for part in kind.split(" ") if part)
-
-
-def borrowed(
-    means: dict[str, float], wanted: set[str], works: dict[str, float], networks: frozenset = frozenset()
-) -> dict[str, float]:
-    """Kinds of ``wanted`` timed by those of ``means`` that differ from them only in keys shown not to change a
-    job's time: every two timed kinds that differ in that key alone did as much work (``works``, else ``means``:
-    within SAME and SLACK). So once a baseline's fits under two faults took as long, a network under the second
-    fault takes its time under the first. Work, not a job's time: the first jobs under a new fault also load its
-    dataset, once. Failing that, a kind one value away that picks the recordings (``DATA_KEYS``), or one value
-    away in any key from a kind of ``networks`` (its jobs train), where no two timed kinds showed that key to
-    matter. A key is judged by the pairs that share a kind's other values where there are any (a fault's fixed fit
-    may take longer than under another fault, the plain fit not), else, for a key that picks the recordings, by
-    pairs of networks for networks and of the rest for the rest (a network trains its steps either way)."""
-    if not wanted or len(means) > PAIRS:
-        return {}
-    parts = {k: _parts(k) for k in {*means, *wanted}}
-
-    def differ(a: str, b: str) -> set[str] | None:
-        return {k for k in parts[a] if parts[a][k] != parts[b][k]} if parts[a].keys() == parts[b].keys() else None
-
-    same: dict = {}  # a key -> as much work; a key that picks the recordings: (key, networks or not) -> the same
-    own: dict = {}  # (a key, the other keys' values) -> as much work, for the pairs that share those values
-    timed = sorted(means)
-
-    def rest(kind: str, key: str) -> frozenset:
-        return frozenset((k, v) for k, v in parts[kind].items() if k != key)
-
-    for i, a in enumerate(timed):
-        for b in timed[i + 1 :]:
-            keys = differ(a, b)
-            if keys is not None and len(keys) == 1:
-                low, high = sorted((works.get(a, means[a]), works.get(b, means[b])))
-                key, alike = next(iter(keys)), high <= SAME * low + SLACK
-                own[key, rest(a, key)] = own.get((key, rest(a, key)), True) and alike
-                if key in DATA_KEYS:
-                    if (a in networks) != (b in networks):
-                        continue
-                    key = (key, a in networks)
-                same[key] = same.get(key, True) and alike
-
-    def shown(key: str, t: str) -> bool | None:
-        """Whether the timed pairs showed ``key`` not to change the work of a job like ``t`` (None: no pair): the
-        pairs of its own other values where there are any (the fault changes a fixed fit's time, not the plain
-        fit's), else, for a key that picks the recordings, those of networks or of fits, as ``t`` is."""
-        if (key, rest(t, key)) in own:
-            return own[key, rest(t, key)]
-        return same.get((key, t in networks) if key in DATA_KEYS else key)
-
-    out = {}
-    for kind in wanted:
-        # a baseline's time lends itself across a key that picks recordings alone: two baselines as fast do not show
-        # that a network chosen by the same key is (experiment=anchored_clean said "about 0:08" with 13:04 left)
-        near = [
-            means[t]
-            for t in timed
-            if (keys := differ(kind, t)) and all(shown(k, t) for k in keys) and (keys <= DATA_KEYS or t in networks)
-        ]
-        # else a kind one value away in a key that picks the recordings, not the work (``DATA_KEYS``), where no two
-        # timed kinds showed that key to matter: a sweep over the fault alone has no such pair until a second
-        # fault ends, and its first fault's time is the best guess for the rest
-        # or a network's sibling in another key: the main job's three objectives train the same network the same
-        # steps, and the first objective's wave said "at least 0:00" with 2:12 left until the next reported steps
-        near = near or [
-            means[t]
-            for t in timed
-            if (keys := differ(kind, t))
-            and len(keys) == 1
-            and (keys <= DATA_KEYS or t in networks)
-            and shown(next(iter(keys)), t) is None
-        ]
-        if near:
-            out[kind] = statistics.fmean(near)
-    return out
-
-
 def rates_of(events: list[dict]) -> dict:
     """num -> (seconds per step, steps done, max_steps, the time of its last report) of a job with three reports
     or more: from its first twentieth on (its first steps start the data loading and warm the libraries up)."""
@@ -239,9 +163,12 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
         by_kind.setdefault(kind(num), []).append(t)
     means = {k: _mean(v) for k, v in by_kind.items()}
     works: dict[str, list] = {}
+    cpus: dict[str, list] = {}
     for num, e in whole.items():
         if e.get("work") is not None and (num in timed or kind(num) not in means):
             works.setdefault(kind(num), []).append(float(e["work"]))
+            if e.get("cpu") is not None:
+                cpus.setdefault(kind(num), []).append(float(e["cpu"]))
     # a re-run sweep's completed jobs end at once, but their records say what a job of their kind took: that
     # times a kind none of whose jobs has run here yet (a resumed sweep of networks and baselines mixed)
     recorded: dict[str, list] = {}
@@ -262,7 +189,10 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     trained |= {num for num, e in ends.items() if e.get("trained")}
     networks = frozenset(map(kind, trained))
     # a kind's work by its median: one job slowed by other work on the machine does not make its kind differ
-    means.update(borrowed(means, wanted, {k: statistics.median(v) for k, v in works.items()}, networks))
+    median = {k: statistics.median(v) for k, v in works.items()}
+    # a kind's CPU time where every job of it that tells has one (not a resumed sweep's older records mixed in)
+    cpu = {k: statistics.median(v) for k, v in cpus.items() if len(v) == len(works[k])}
+    means.update(borrowed(means, wanted, median, networks, cpu))
     if not jobs or not (means or partial):  # resumed jobs alone: a lower bound, not their times per job
         return None
     floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
