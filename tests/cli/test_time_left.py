@@ -3,11 +3,12 @@ job's start and end as the launcher and the jobs would write them to the progres
 and the truth, the last job's end, known in advance."""
 
 import json
+import re
 from types import SimpleNamespace
 
 import pytest
 
-from hybrid_sysid.launch.progress import count_done, job_line, mark_start
+from hybrid_sysid.launch.progress import count_done, job_line, left_text, mark_start
 from hybrid_sysid.launch.time_left import estimate
 
 WITHIN = 0.30  # the estimate's promise once the first job has ended, relative to the truth
@@ -488,3 +489,35 @@ def test_kinds_compared_by_their_cpu_time_where_load_moved_their_wall_time():
     assert untimed == 0 and seconds > 2 * 180.0, (seconds, untimed)
     assert sweep([352.0, 350.0, 183.0, 180.0])[1] == 2  # the CPU, as the wall, says the fault matters
     assert sweep([None] * 4)[1] == 2  # records without it: their wall times, as before
+
+
+def test_a_fault_shown_to_change_the_networks_time_is_guessed_beside_the_bound():
+    """The anchored sweep after three faults: the skew fix doubled the anchored networks' time under one fault, so
+    the next faults' networks are not timed, and the line said "at least 0:04" with about 3 h 30 min left. The
+    bound stays, and beside it the same kinds at their mean under the other faults: within 30% of the truth where
+    the next fault costs as the others do on average, a lower bound otherwise."""
+    per_fault = {"clean": 100.0, "skewed": 200.0, "lowpass": 190.0, "hardening": 110.0}
+    kinds, work = [], []
+    for fault, seconds in per_fault.items():
+        for seed in range(2):
+            kinds.append(f"fault={fault} estimator=cnn")
+            work.append(seconds * (1 + 0.02 * seed))
+    header, events = simulate(kinds, work, workers=1)
+    header["swept"] = ["fault", "estimator", "seed"]
+    ended = max(e["t"] for e in events if e.get("end") == 3)  # two faults done
+    upto = [e for e in events if e["t"] <= ended]
+    truth = max(e["t"] for e in events) - ended
+    bound, untimed = estimate(header, upto, ended)
+    assert untimed == 4 and bound < truth
+    seconds, still = estimate(header, upto, ended, guess=True)
+    assert still == 0 and close(seconds, truth, work), (seconds, truth)
+    # the line says both: the bound and the guess, naming the key that was guessed across
+    line = left_text({**header, "events": upto}, 4, ended)
+    said = re.search(
+        r"at least ([\d:]+) left \(4 jobs of kinds not timed yet; about ([\d:]+) at their times under "
+        r"another fault\)$",
+        line,
+    )
+    assert said, line
+    as_seconds = [sum(int(x) * 60**i for i, x in enumerate(reversed(c.split(":")))) for c in said.groups()]
+    assert as_seconds == [pytest.approx(bound, abs=1), pytest.approx(seconds, abs=1)], line

@@ -18,6 +18,7 @@ from omegaconf import DictConfig, OmegaConf
 
 from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.core.words import count
+from hybrid_sysid.launch.kinds_alike import DATA_KEYS
 from hybrid_sysid.launch.time_left import estimate, rates_of
 from hybrid_sysid.runs.sweepdir import SweepDir
 
@@ -181,7 +182,15 @@ def left_text(header: dict, done: int, now: float) -> str:
     if not untimed:
         return f", about {_clock(seconds)} left"
     kinds = "a kind" if untimed == 1 else "kinds"
-    return f", at least {_clock(seconds)} left ({count(untimed, 'job')} of {kinds} not timed yet)"
+    said = f"{count(untimed, 'job')} of {kinds} not timed yet"
+    # those jobs at their kinds' times under another fault (sensor, car, road), though that changes a job's time:
+    # a guess beside the bound, not in its place
+    guessed = estimate(header, header.get("events") or [], now, guess=True)
+    if guessed is not None and guessed[1] < untimed:
+        keys = [k for k in header.get("swept") or [] if k in DATA_KEYS]
+        where = f"another {keys[0]}" if len(keys) == 1 else "another fault, sensor, car or road"
+        said += f"; {'at least' if guessed[1] else 'about'} {_clock(guessed[0])} at their times under {where}"
+    return f", at least {_clock(seconds)} left ({said})"
 
 
 def record_of(job_return: Any):

@@ -138,10 +138,11 @@ def resumed(events: list[dict]) -> set:
     return {num for num, done in first.items() if done > 0}
 
 
-def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] | None:
+def estimate(header: dict, events: list[dict], now: float, guess: bool = False) -> tuple[float, int] | None:
     """(seconds until the last job ends, how many of the jobs not ended are of a kind with no time: neither an
     ended job nor a running one's steps; the seconds are then a lower bound), or None when no job has a time (the
-    caller falls back on elapsed / done x remaining)."""
+    caller falls back on elapsed / done x remaining). With ``guess``, kinds shown to cost differently under
+    another fault, sensor, car or road take their mean there (``kinds_alike.borrowed``)."""
     jobs = header.get("jobs")
     kinds = header.get("kinds") or []
     starts, ends = {}, {}
@@ -192,7 +193,7 @@ def estimate(header: dict, events: list[dict], now: float) -> tuple[float, int] 
     median = {k: statistics.median(v) for k, v in works.items()}
     # a kind's CPU time where every job of it that tells has one (not a resumed sweep's older records mixed in)
     cpu = {k: statistics.median(v) for k, v in cpus.items() if len(v) == len(works[k])}
-    means.update(borrowed(means, wanted, median, networks, cpu))
+    means.update(borrowed(means, wanted, median, networks, cpu, guess))
     if not jobs or not (means or partial):  # resumed jobs alone: a lower bound, not their times per job
         return None
     floor = overhead  # what a job beyond its work takes: a kind with no time takes at least that
