@@ -21,15 +21,16 @@ def clock(seconds: float) -> str:
     return f"{m}:{s:02d}"
 
 
-def replay(sweep_dir: Path) -> list[tuple[str, float, float, float, int]]:
-    """(what, sweep clock, estimate, truth, jobs not timed) at each end but the last and each step line."""
+def replay(sweep_dir: Path, guess: bool = False) -> list[tuple[str, float, float, float, int]]:
+    """(what, sweep clock, estimate, truth, jobs not timed) at each end but the last and each step line; with
+    ``guess``, the estimate the job line gives beside a lower bound (kinds at their times under another fault)."""
     header, *events = map(json.loads, (sweep_dir / ".progress").read_text().splitlines())
     last = max(e["t"] for e in events if "end" in e)
     out = []
     for n, e in enumerate(events):
         if e["t"] >= last or not ("end" in e or "said" in e):
             continue
-        guess = estimate(header, events[: n + 1], e["t"])
+        guess = estimate(header, events[: n + 1], e["t"], guess=guess)
         if guess is not None:
             what = f"end #{e['end']}" if "end" in e else f"steps #{e['said']}"
             out.append((what, e["t"] - header["start"], guess[0], last - e["t"], guess[1]))
@@ -39,9 +40,11 @@ def replay(sweep_dir: Path) -> list[tuple[str, float, float, float, int]]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("sweeps", nargs="+", type=Path)
-    for sweep_dir in parser.parse_args().sweeps:
+    parser.add_argument("--guess", action="store_true", help="the estimate said beside a lower bound")
+    args = parser.parse_args()
+    for sweep_dir in args.sweeps:
         print(sweep_dir)
-        for what, at, seconds, truth, untimed in replay(sweep_dir):
+        for what, at, seconds, truth, untimed in replay(sweep_dir, args.guess):
             said = f"at least {clock(seconds)}" if untimed else f"about {clock(seconds)}"
             error = "" if untimed else f" ({100 * (seconds - truth) / truth:+.0f}%)"
             print(f"  {clock(at)} {what:10s} {said:>16s} left, truth {clock(truth)}{error}")
