@@ -30,10 +30,10 @@ def replay(sweep_dir: Path, guess: bool = False) -> list[tuple[str, float, float
     for n, e in enumerate(events):
         if e["t"] >= last or not ("end" in e or "said" in e):
             continue
-        guess = estimate(header, events[: n + 1], e["t"], guess=guess)
-        if guess is not None:
+        said = estimate(header, events[: n + 1], e["t"], guess=guess)
+        if said is not None:
             what = f"end #{e['end']}" if "end" in e else f"steps #{e['said']}"
-            out.append((what, e["t"] - header["start"], guess[0], last - e["t"], guess[1]))
+            out.append((what, e["t"] - header["start"], said[0], last - e["t"], said[1]))
     return out
 
 
