@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# Re-run every sweep behind docs/results/ (about three hours on two CPU cores; the sweeps the readings rest on
-# first), then regenerate the pages.
+# Re-run every sweep behind docs/results/ (about thirteen hours on two CPU cores, ten of them experiment=anchored;
+# the sweeps the readings rest on first), then regenerate the pages.
 # With the sweeps already on disk, only the last command is needed.
 # docs/figures/main_job.png, the README's figure, is not written here: it is figures/robustness.png of a run of the
 # README's first command (hybrid-sysid experiment=robustness), kept with that run's table in docs/results_notes.md
