@@ -7,8 +7,9 @@ import re
 from types import SimpleNamespace
 
 import pytest
+from omegaconf import OmegaConf
 
-from hybrid_sysid.launch.progress import count_done, job_line, left_text, mark_start
+from hybrid_sysid.launch.progress import count_done, done_before, job_line, left_text, mark_start
 from hybrid_sysid.launch.time_left import estimate
 
 WITHIN = 0.30  # the estimate's promise once the first job has ended, relative to the truth
@@ -205,6 +206,65 @@ def test_a_resumed_sweep_times_a_kind_by_its_completed_jobs_records():
     assert untimed == 0 and abs(seconds - truth) <= WITHIN * truth, (seconds, truth)
     # without the records' times the networks would count at the baselines' 5 s: far below the truth
     assert seconds > 10 * 2 * 5.0
+
+
+def test_a_resumed_sweep_does_not_wait_for_the_jobs_it_will_skip():
+    """A sweep of ten 100-s jobs on two workers, run again after eight completed: those end at once, one after the
+    other, and the two left take 100 s side by side. At every skipped end the estimate must say about 100 s (the
+    truth), not the 4.5 x 100 s of nine jobs still to run."""
+    header = {"jobs": 10, "start": 0.0, "at_once": 2, "kinds": [""] * 10}
+    skipped = list(range(8))
+    t = 0.0
+    rerun = []
+    for num in skipped:  # each returns its record in 0.05 s, on the first worker
+        entry = {"t": t + 0.05, "seconds": 0.05, "cold": num == 0, "pid": 100, "work": 100.0, "ok": True}
+        rerun += [{"start": num, "t": t, "pid": 100}, {**entry, "end": num}]
+        t += 0.05
+    for num in (8, 9):
+        rerun += [{"start": num, "t": t, "pid": 100 + num % 2}]
+    rerun += [
+        {
+            "end": num,
+            "t": t + 100.0,
+            "seconds": 100.0,
+            "cold": num == 9,
+            "pid": 100 + num % 2,
+            "work": 100.0,
+            "ok": True,
+        }
+        for num in (8, 9)
+    ]
+    header["done_before"] = {str(n): 100.0 for n in skipped}
+    for n, e in enumerate(rerun[:16]):
+        if "end" in e:
+            seconds, untimed = estimate(header, rerun[: n + 1], e["t"])
+            truth = rerun[-1]["t"] - e["t"]
+            assert untimed == 0 and abs(seconds - truth) <= WITHIN * truth, (e, seconds, truth)
+    # the same lines without the header's list: the jobs it skips count as jobs to run
+    del header["done_before"]
+    seconds, _ = estimate(header, rerun[:2], rerun[1]["t"])
+    assert seconds > 3 * 100.0
+
+
+def test_done_before_lists_the_completed_runs_of_a_sweep_directory(tmp_path):
+    """What a re-run sweep's header says it will skip: the numbered directories whose record says completed, with
+    their work; not a failed run, a truncated record, a directory of another name or a number beyond the sweep."""
+    runs = {
+        "0": {"status": "completed", "fit_seconds": 12.5},
+        "1": {"status": "failed"},
+        "3": {"status": "completed", "steps": 0, "train_seconds": 2.0},
+        "7": {"status": "completed"},
+        "notes": {"status": "completed"},
+    }
+    for name, record in runs.items():
+        (tmp_path / name).mkdir()
+        (tmp_path / name / "metrics.json").write_text(json.dumps(record))
+    (tmp_path / "2").mkdir()
+    (tmp_path / "2" / "metrics.json").write_text('{"status": "compl')
+    config = OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path), "subdir": "${hydra.job.num}"}}})
+    assert done_before(config, 5) == {"0": 12.5, "3": 2.0}
+    config.hydra.sweep.subdir = "${hydra.job.override_dirname}"  # directories not named by number: none told
+    assert done_before(config, 5) == {}
 
 
 def test_networks_after_baselines_are_timed_by_their_steps_long_before_one_ends():

@@ -19,7 +19,8 @@ from omegaconf import DictConfig, OmegaConf
 from hybrid_sysid.core.overrides import parse_override
 from hybrid_sysid.core.words import count
 from hybrid_sysid.launch.kinds_alike import DATA_KEYS
-from hybrid_sysid.launch.time_left import estimate, rates_of
+from hybrid_sysid.launch.time_left import estimate, rates_of, work_seconds
+from hybrid_sysid.runs.rundir import RunDir
 from hybrid_sysid.runs.sweepdir import SweepDir
 
 MAX_KINDS = 100_000  # jobs: a longer sweep's header names no kinds (its estimate then treats jobs alike)
@@ -101,10 +102,34 @@ def start_line(config: DictConfig, jobs: int | None, sweep_dir: Path) -> str:
     )
 
 
+def done_before(config: DictConfig, jobs: int | None) -> dict[str, float | None]:
+    """Job number -> the work its record gives, for each job whose directory already holds a completed run (a
+    sweep run again after an interruption): training.run skips it, so it ends at once and the estimate must not
+    wait for it. Only where job directories are named by number, Hydra's default."""
+    sweep = OmegaConf.to_container(config.hydra.sweep, resolve=False)
+    sweep_dir = Path(str(config.hydra.sweep.dir))
+    if sweep.get("subdir") != "${hydra.job.num}" or not jobs or not sweep_dir.is_dir():
+        return {}
+    out = {}
+    for path in sweep_dir.iterdir():
+        if path.name.isdigit() and int(path.name) < jobs:
+            record = RunDir(path).completed_record()
+            if record is not None:
+                out[path.name] = work_seconds(record)
+    return out
+
+
 def header_of(config: DictConfig, start: float) -> dict:
     """The progress file's first line: what the job lines and the time-left estimate need from the sweep."""
     jobs, swept = sweep_jobs(config)
-    return {"jobs": jobs, "swept": swept, "start": start, "at_once": at_once(config, jobs), "kinds": job_kinds(config)}
+    return {
+        "jobs": jobs,
+        "swept": swept,
+        "start": start,
+        "at_once": at_once(config, jobs),
+        "kinds": job_kinds(config),
+        "done_before": done_before(config, jobs),
+    }
 
 
 def mark_start(sweep_dir: Path, num, now: float, pid: int | None = None) -> None:

@@ -25,6 +25,9 @@ wrong, and each has its answer here:
   lower bound, and the line says "at least" and how many jobs it did not time.
 - A job resumed from its checkpoint (an interrupted sweep run again): its first step report is past step 0, and
   its time and recorded work are those of the steps left. It times nothing, as a re-run's completed job.
+- A re-run's completed jobs (the header's "done_before", with their records' work) end at once. Counted as still
+  to run, they made the first lines of a resumed sweep say "about 312:29 left" where 46:30 remained; they are
+  done, and their records time their kinds until a job of the kind ends here.
 """
 
 from __future__ import annotations
@@ -176,15 +179,19 @@ def estimate(header: dict, events: list[dict], now: float, guess: bool = False) 
     for num, e in whole.items():
         if num not in timed and e.get("ok", True) and e.get("work") is not None and kind(num) not in means:
             recorded.setdefault(kind(num), []).append(float(e["work"]))
+    before = {int(n): w for n, w in (header.get("done_before") or {}).items() if str(n).isdigit()}
+    for num, work in before.items():  # those that have not said their end yet
+        if num not in ends and work is not None and kind(num) not in means:
+            recorded.setdefault(kind(num), []).append(float(work))
     means.update({k: statistics.fmean(v) for k, v in recorded.items()})
-    running = [n for n in starts if n not in ends]
+    running = [n for n in starts if n not in ends and n not in before]
     rates = {n: r for n, r in rates_of(events).items() if n in running and kind(n) not in means}
     stepped: dict[str, list] = {}
     for num, (rate, _, of, _) in rates.items():  # a kind timed by its running jobs' steps alone
         stepped.setdefault(kind(num), []).append(rate * of)
         works.setdefault(kind(num), []).append(rate * of)
     means.update({k: statistics.fmean(v) + overhead for k, v in stepped.items()})
-    wanted = {kind(n) for n in range(int(jobs or 0)) if n not in ends} - set(means)
+    wanted = {kind(n) for n in range(int(jobs or 0)) if n not in ends and n not in before} - set(means)
     # the kinds whose jobs train: they report steps, or ended with a record of steps (a re-run's completed networks)
     trained = {e["steps"] for e in events if "steps" in e and e.get("of")}
     trained |= {num for num, e in ends.items() if e.get("trained")}
@@ -217,7 +224,7 @@ def estimate(header: dict, events: list[dict], now: float, guess: bool = False) 
     slots = [still(n) for n in running]
     slots += [0.0] * max(int(workers) - len(slots), 0)
     heapq.heapify(slots)
-    waiting = [n for n in range(int(jobs)) if n not in starts and n not in ends]
+    waiting = [n for n in range(int(jobs)) if n not in starts and n not in ends and n not in before]
     if not kinds:  # jobs numbered otherwise (a search's trials): the count alone
         waiting = list(range(max(int(jobs) - len(ends) - len(running), 0)))
     for num in waiting:
