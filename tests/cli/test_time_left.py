@@ -259,6 +259,7 @@ def test_done_before_lists_the_completed_runs_of_a_sweep_directory(tmp_path):
     for name, record in runs.items():
         (tmp_path / name).mkdir()
         (tmp_path / name / "metrics.json").write_text(json.dumps(record))
+    (tmp_path / "\u00b2").mkdir()  # a digit to str.isdigit, not to int
     (tmp_path / "2").mkdir()
     (tmp_path / "2" / "metrics.json").write_text('{"status": "compl')
     config = OmegaConf.create({"hydra": {"sweep": {"dir": str(tmp_path), "subdir": "${hydra.job.num}"}}})

@@ -112,7 +112,7 @@ def done_before(config: DictConfig, jobs: int | None) -> dict[str, float | None]
         return {}
     out = {}
     for path in sweep_dir.iterdir():
-        if path.name.isdigit() and int(path.name) < jobs:
+        if path.name.isascii() and path.name.isdigit() and int(path.name) < jobs:  # not "²", which int refuses
             record = RunDir(path).completed_record()
             if record is not None:
                 out[path.name] = work_seconds(record)

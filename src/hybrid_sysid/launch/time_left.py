@@ -179,7 +179,8 @@ def estimate(header: dict, events: list[dict], now: float, guess: bool = False) 
     for num, e in whole.items():
         if num not in timed and e.get("ok", True) and e.get("work") is not None and kind(num) not in means:
             recorded.setdefault(kind(num), []).append(float(e["work"]))
-    before = {int(n): w for n, w in (header.get("done_before") or {}).items() if str(n).isdigit()}
+    told = header.get("done_before") or {}
+    before = {int(n): w for n, w in told.items() if str(n).isascii() and str(n).isdigit()}
     for num, work in before.items():  # those that have not said their end yet
         if num not in ends and work is not None and kind(num) not in means:
             recorded.setdefault(kind(num), []).append(float(work))
